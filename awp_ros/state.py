@@ -1,0 +1,209 @@
+"""The robot state one evaluation answers, and its validation.
+
+Conventions (SI units):
+
+- ``joint_positions`` / ``joint_velocities`` / ``joint_accelerations``: joint name ->
+  [rad], [rad/s], [rad/s^2] (or [m], [m/s], [m/s^2] for prismatic joints). Positions must
+  name every joint of the model; velocities and accelerations, when given, too.
+- ``base_orientation``: unit quaternion ``[x, y, z, w]`` of the base in the world (ROS
+  order), default level ``[0, 0, 0, 1]``.
+- ``base_twist``: ``[v; omega]`` [m/s, rad/s] of the base frame, **expressed in the base
+  frame** (the ``child_frame_id`` convention of ``nav_msgs/Odometry`` and of an IMU's
+  angular rate; Pinocchio's free-flyer velocity).
+- ``base_acceleration``: ``[a; alpha]`` [m/s^2, rad/s^2], the classical (not spatial)
+  linear acceleration of the base origin without gravity (an IMU's specific force plus
+  ``R^T g``) and the angular acceleration, both **expressed in the base frame**.
+- ``stance``: the feet in contact (any subset of the config's feet, possibly empty);
+  ``None`` means all feet.
+- ``normals``: foot -> contact normal (world axes, pointing from the ground into the robot);
+  default the config's. Non-unit normals are normalised with a warning.
+- ``friction_coefficient``: one mu for every stance foot (default the config's);
+  ``friction_coefficients``: foot -> mu, taking precedence.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+import math
+
+import numpy as np
+
+from awp_ros.errors import InputError
+
+__all__ = ['RobotState', 'ResolvedState', 'resolve_state']
+
+
+@dataclass
+class RobotState:
+    """One state of the robot (see the module docstring for frames and units)."""
+
+    joint_positions: Mapping[str, float]
+    joint_velocities: Mapping[str, float] | None = None
+    joint_accelerations: Mapping[str, float] | None = None
+    base_orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0)
+    base_twist: Sequence[float] | None = None
+    base_acceleration: Sequence[float] | None = None
+    stance: Sequence[str] | None = None
+    normals: Mapping[str, Sequence[float]] = field(default_factory=dict)
+    friction_coefficient: float | None = None
+    friction_coefficients: Mapping[str, float] = field(default_factory=dict)
+
+
+@dataclass
+class ResolvedState:
+    """A validated state as arrays, in the model's joint order.
+
+    ``q`` (n_j,), ``v`` / ``a`` (6 + n_j,) in Pinocchio's convention (base part in the base
+    frame, spatial acceleration) or None, ``quaternion`` (4,) unit ``[x, y, z, w]``,
+    ``stance`` the feet in config order, ``normals`` (K, 3) unit, ``mus`` (K,),
+    ``warnings`` human-readable notes (normalised inputs, joints beyond their limits).
+    """
+
+    q: np.ndarray
+    v: np.ndarray | None
+    a: np.ndarray | None
+    quaternion: np.ndarray
+    stance: tuple[str, ...]
+    normals: np.ndarray
+    mus: np.ndarray
+    warnings: list[str]
+
+
+def resolve_state(state: RobotState, joint_names: Sequence[str], feet: Sequence[str], *,
+                  default_normal: Sequence[float] = (0.0, 0.0, 1.0),
+                  default_mu: float = 0.7,
+                  position_limits: tuple[np.ndarray, np.ndarray] | None = None,
+                  unit_tol: float = 1e-6) -> ResolvedState:
+    """Validate ``state`` against a model's joints and feet and return arrays.
+
+    :param state: the state.
+    :param joint_names: the model's joint names in q order.
+    :param feet: the config's feet (the stance is returned in this order).
+    :param default_normal: unit contact normal used when a foot has none (world axes).
+    :param default_mu: friction coefficient used when none is given [-].
+    :param position_limits: optional (lower, upper) joint limits [rad]; positions beyond
+        them give a warning, not an error.
+    :param unit_tol: normals and quaternions farther than this from unit norm are
+        normalised with a warning.
+    :raises InputError: NaN/inf, unknown or missing joints, unknown feet, zero normals or
+        quaternions, mu <= 0, wrong lengths; the message names the bad value.
+    """
+    warnings: list[str] = []
+    q = _joint_vector(state.joint_positions, joint_names, 'joint_positions')
+    if position_limits is not None:
+        lo, hi = position_limits
+        out = np.flatnonzero((q < lo - unit_tol) | (q > hi + unit_tol))
+        for i in out:
+            warnings.append(f'joint {joint_names[i]!r} at {q[i]:.4g} rad is outside its '
+                            f'limits [{lo[i]:.4g}, {hi[i]:.4g}]')
+    quat = _vector(state.base_orientation, 4, 'base_orientation')
+    norm = float(np.linalg.norm(quat))
+    if norm == 0.0:
+        raise InputError('base_orientation is a zero quaternion')
+    if abs(norm - 1.0) > unit_tol:
+        warnings.append(f'base_orientation had norm {norm:.6g}; normalised')
+    quat = quat / norm
+    v = a = None
+    nj = len(joint_names)
+    if state.joint_velocities is not None or state.base_twist is not None:
+        v = np.zeros(6 + nj)
+        if state.base_twist is not None:
+            v[:6] = _vector(state.base_twist, 6, 'base_twist')
+        if state.joint_velocities is not None:
+            v[6:] = _joint_vector(state.joint_velocities, joint_names, 'joint_velocities')
+    if state.joint_accelerations is not None or state.base_acceleration is not None:
+        a = np.zeros(6 + nj)
+        if state.base_acceleration is not None:
+            a[:6] = _vector(state.base_acceleration, 6, 'base_acceleration')
+            if v is not None:
+                # Classical -> spatial: a_spatial = a_classical - omega x v (base frame).
+                a[:3] -= np.cross(v[3:6], v[:3])
+        if state.joint_accelerations is not None:
+            a[6:] = _joint_vector(state.joint_accelerations, joint_names,
+                                  'joint_accelerations')
+    stance = _stance(state.stance, feet)
+    dn = np.asarray(default_normal, dtype=float)
+    normals = np.tile(dn / np.linalg.norm(dn), (len(stance), 1))
+    _check_feet(state.normals, feet, 'normals')
+    for k, foot in enumerate(stance):
+        if foot in state.normals:
+            n = _vector(state.normals[foot], 3, f'normals[{foot!r}]')
+            norm = float(np.linalg.norm(n))
+            if norm == 0.0:
+                raise InputError(f'normals[{foot!r}] is the zero vector')
+            if abs(norm - 1.0) > unit_tol:
+                warnings.append(f'normals[{foot!r}] had norm {norm:.6g}; normalised')
+            normals[k] = n / norm
+    mu = default_mu
+    if state.friction_coefficient is not None:
+        mu = _mu(state.friction_coefficient, 'friction_coefficient')
+    _check_feet(state.friction_coefficients, feet, 'friction_coefficients')
+    mus = np.array([_mu(state.friction_coefficients[f], f'friction_coefficients[{f!r}]')
+                    if f in state.friction_coefficients else mu for f in stance])
+    return ResolvedState(q, v, a, quat, stance, normals, mus, warnings)
+
+
+# -- helpers -------------------------------------------------------------------------------
+
+
+def _joint_vector(values, joint_names: Sequence[str], name: str) -> np.ndarray:
+    if not isinstance(values, Mapping):
+        raise InputError(f'{name} must map joint names to numbers, got {type(values).__name__}')
+    known = set(joint_names)
+    unknown = [j for j in values if j not in known]
+    if unknown:
+        raise InputError(f'{name} names unknown joints {unknown}; joints are '
+                         f'{list(joint_names)}')
+    missing = [j for j in joint_names if j not in values]
+    if missing:
+        raise InputError(f'{name} lacks joints {missing}')
+    out = np.empty(len(joint_names))
+    for i, j in enumerate(joint_names):
+        out[i] = _number(values[j], f'{name}[{j!r}]')
+    return out
+
+
+def _number(value, name: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+        raise InputError(f'{name} must be a number, got {value!r}')
+    x = float(value)
+    if not math.isfinite(x):
+        raise InputError(f'{name} is not finite: {x!r}')
+    return x
+
+
+def _vector(value, n: int, name: str) -> np.ndarray:
+    if isinstance(value, (str, bytes, Mapping)) or not hasattr(value, '__len__') \
+            or len(value) != n:
+        raise InputError(f'{name} must be a list of {n} numbers, got {value!r}')
+    return np.array([_number(x, f'{name}[{i}]') for i, x in enumerate(value)])
+
+
+def _stance(stance, feet: Sequence[str]) -> tuple[str, ...]:
+    if stance is None:
+        return tuple(feet)
+    if isinstance(stance, (str, bytes, Mapping)) or not hasattr(stance, '__iter__'):
+        raise InputError(f'stance must be a list of foot names, got {stance!r}')
+    stance = list(stance)
+    unknown = [f for f in stance if f not in feet]
+    if unknown:
+        raise InputError(f'stance names unknown feet {unknown}; feet are {list(feet)}')
+    if len(set(stance)) != len(stance):
+        raise InputError(f'stance lists a foot twice: {stance}')
+    return tuple(f for f in feet if f in stance)
+
+
+def _check_feet(values, feet: Sequence[str], name: str) -> None:
+    if not isinstance(values, Mapping):
+        raise InputError(f'{name} must map foot names to values, got {values!r}')
+    unknown = [f for f in values if f not in feet]
+    if unknown:
+        raise InputError(f'{name} names unknown feet {unknown}; feet are {list(feet)}')
+
+
+def _mu(value, name: str) -> float:
+    mu = _number(value, name)
+    if mu <= 0.0:
+        raise InputError(f'{name} must be > 0, got {mu!r}')
+    return mu
