@@ -20,6 +20,7 @@ import numpy as np
 
 from awp_ros.errors import AwpError
 from awp_ros.evaluator import FeasibilityEvaluator
+from awp_ros.runtime import tune_process
 
 __all__ = ['main', 'run_benchmark']
 
@@ -84,6 +85,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``awp_bench``; return the exit status."""
+    tune_process()
     args = build_parser().parse_args(argv)
     if args.samples < 1:
         sys.stderr.write(f'{PROG}: error: --samples must be >= 1, got {args.samples}\n')

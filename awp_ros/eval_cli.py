@@ -35,6 +35,7 @@ import sys
 from awp_ros.errors import AwpError, InputError, ModelError
 from awp_ros.evaluator import FeasibilityEvaluator
 from awp_ros.state import RobotState
+from awp_ros.runtime import tune_process
 
 __all__ = ['main', 'state_from_json']
 
@@ -92,6 +93,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``awp_eval``; return the exit status."""
+    tune_process()
     args = build_parser().parse_args(argv)
     try:
         doc = _read(args.state)
