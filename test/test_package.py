@@ -26,6 +26,8 @@ ROSDEP_KEYS = {
     'visualization_msgs': 'visualization_msgs',
     'diagnostic_msgs': 'diagnostic_msgs',
     'builtin_interfaces': 'builtin_interfaces',
+    'rcl_interfaces': 'rcl_interfaces',
+    'threadpoolctl': 'python3-threadpoolctl',
 }
 
 
