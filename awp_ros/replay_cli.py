@@ -24,7 +24,7 @@ import json
 from pathlib import Path
 import sys
 
-from awp_ros.errors import AwpError
+from awp_ros.cli_support import run_main
 
 __all__ = ['main', 'parse_override']
 
@@ -109,19 +109,16 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run the command line; return the exit status."""
     args = _parser().parse_args(argv)
-    try:
-        if args.play:
-            return _play(args)
-        if not args.output:
-            sys.stderr.write(f'{PROG}: error: give -o OUT_BAG (offline replay) or --play\n')
-            return 2
-        return _replay(args)
-    except AwpError as exc:
-        sys.stderr.write(f'{PROG}: error: {exc}\n')
+    return run_main(PROG, lambda: _run(args))
+
+
+def _run(args) -> int:
+    if args.play:
+        return _play(args)
+    if not args.output:
+        sys.stderr.write(f'{PROG}: error: give -o OUT_BAG (offline replay) or --play\n')
         return 2
-    except KeyboardInterrupt:
-        sys.stderr.write(f'{PROG}: interrupted\n')
-        return 130
+    return _replay(args)
 
 
 def _replay(args) -> int:
@@ -149,7 +146,7 @@ def _replay(args) -> int:
 def _play(args) -> int:
     import rclpy
 
-    from awp_ros.replay import play_bag
+    from awp_ros.bag_player import play_bag
 
     rclpy.init()
     try:
