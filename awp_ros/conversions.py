@@ -10,8 +10,9 @@
   header (parameter ``wrench_frame_id``); foot positions [m] relative to the CoM, same axes.
 - ``sensor_msgs/JointState`` + ``awp_ros_msgs/ContactState`` (+ ``sensor_msgs/Imu``) ->
   :class:`~awp_ros.state.RobotState`. Message-level checks (array lengths, duplicate names,
-  contact names that are not feet) raise :class:`~awp_ros.errors.InputError`; the values
-  themselves are validated by the evaluator.
+  contact names that are not feet) raise :class:`~awp_ros.errors.InputError`; joints the
+  model does not have are dropped with a note (when the caller passes the model's joints);
+  the values themselves are validated by the evaluator.
 
 This module imports message classes but not rclpy.
 """
@@ -19,7 +20,7 @@ This module imports message classes but not rclpy.
 from __future__ import annotations
 
 from array import array
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 import math
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport, LegPolytope, LegPolytopes
@@ -52,6 +53,14 @@ __all__ = [
 KINDS = {'awp': WrenchPolytope.AWP, 'fwp': WrenchPolytope.FWP, 'fws': WrenchPolytope.FWS}
 
 _NAN6 = np.full(6, np.nan)
+
+
+def _shorten(items: Sequence, limit: int = 8) -> str:
+    """Return ``repr(list(items))``, eliding entries after the first ``limit``."""
+    items = list(items)
+    if len(items) <= limit:
+        return repr(items)
+    return repr(items[:limit])[:-1] + f', ... ({len(items) - limit} more)]'
 
 
 def stamp_to_ns(stamp: Time) -> int:
@@ -252,7 +261,9 @@ def error_report(header: Header, status: int, reason: str, *, compute_time: floa
 
 def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
                           imu: Imu | None = None, *, feet: Sequence[str],
-                          use_velocities: bool = True) -> RobotState:
+                          use_velocities: bool = True,
+                          joint_names: Collection[str] | None = None,
+                          notes: list[str] | None = None) -> RobotState:
     """Return the :class:`RobotState` of one joint-state message and the latest inputs.
 
     :param joints: ``name`` and ``position`` [rad] of every joint (same length); ``velocity``
@@ -265,6 +276,11 @@ def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
         orientation estimate) is an error.
     :param feet: the config's feet (contact names must be among them).
     :param use_velocities: pass joint velocities (Coriolis terms in the bias torques).
+    :param joint_names: the model's joints (a set is fastest). Names of ``joints`` not among
+        them (e.g. an arm's or a gripper's joints that the model leaves out) are ignored and
+        a note naming them is appended to ``notes``. None: every name is passed on, and the
+        evaluator rejects unknown ones.
+    :param notes: receives the notes about ignored entries (warnings of the report).
     :raises InputError: array lengths that do not match, duplicate names, contact names that
         are not feet (the message names the bad entry).
     """
@@ -274,7 +290,7 @@ def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
                          'positions')
     if len(set(names)) != len(names):
         dup = sorted({n for n in names if names.count(n) > 1})
-        raise InputError(f'joint_states names joints twice: {dup}')
+        raise InputError(f'joint_states names joints twice: {_shorten(dup)}')
     positions = dict(zip(names, np.asarray(joints.position, dtype=float).tolist()))
     velocities = None
     if use_velocities and len(joints.velocity):
@@ -282,6 +298,16 @@ def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
             raise InputError(f'joint_states has {len(names)} names but '
                              f'{len(joints.velocity)} velocities')
         velocities = dict(zip(names, np.asarray(joints.velocity, dtype=float).tolist()))
+    if joint_names is not None:
+        unknown = [n for n in names if n not in joint_names]
+        if unknown:
+            for n in unknown:
+                del positions[n]
+                if velocities is not None:
+                    del velocities[n]
+            if notes is not None:
+                notes.append(f'joint_states names joints the model does not have, ignored: '
+                             f'{_shorten(unknown)}')
     stance: list[str] = []
     normals: dict = {}
     mus: dict = {}

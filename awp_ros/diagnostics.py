@@ -6,14 +6,24 @@ hand: one array per period (1 Hz) on ``/diagnostics``, statuses named ``<node>: 
 units in the keys. Two statuses:
 
 - ``<node>: inputs``: per input topic the receive rate [Hz] over the last period, the age of
-  the last message [s] (wall time), messages lost (DDS ``message_lost`` events) and
-  malformed. WARN when an input is stale (older than ``stale_timeout_s``) or messages were
-  lost in the period; ERROR when no joint state arrived yet.
-- ``<node>: evaluation``: reports per status in the period and in total, compute time
-  p50 / p99 [ms] and latency from the joint-state stamp to the report's publication p50 /
-  p99 [ms] over the period. WARN when reports in the period were not evaluated (invalid,
-  stale, error) or when the p50 compute time exceeds the joint-state period of the period's
-  receive rate (the node is falling behind; the queue of ``qos_depth`` absorbs bursts).
+  the last message [s] (wall time), the messages received, lost (DDS ``message_lost``
+  events) and missing from the publisher's sequence numbers (:meth:`~NodeDiagnostics.
+  sequence`: silently replaced in a full keep-last queue). WARN when an input is stale
+  (older than ``stale_timeout_s``) or messages were lost or missing in the period; ERROR
+  when no joint state arrived yet.
+- ``<node>: evaluation``: reports per status in the period and in total, the last error and
+  the last warning (the reasons of the reports), the reports per number of stance legs in
+  the period (e.g. ``2:480, 4:520``; fewer than 3 legs give flat wrench sets), compute time
+  p50 / p99 [ms], latency from the joint-state stamp to the report's publication p50 / p99
+  [ms] over the period, and outputs that could not be built. ERROR when there is no robot
+  model (``model_error``), a report of the period has ``STATUS_ERROR`` or an output failed;
+  WARN when parameters were rejected at startup (``config_errors``, defaults used instead),
+  reports in the period were not evaluated (invalid, stale), carried a warning,
+  or when the p50 compute time exceeds the joint-state period of the period's receive rate
+  (the node is falling behind; the queue of ``qos_depth`` absorbs bursts).
+
+``<node>`` is the node's fully qualified name without the leading slash (``awp_node``,
+``hyq/awp_node``), so nodes in different namespaces are told apart.
 
 Everything here is O(1) per message (a few counters and one slot of a preallocated ring).
 """
@@ -30,6 +40,9 @@ __all__ = ['NodeDiagnostics', 'STATUS_NAMES']
 
 #: FeasibilityReport.STATUS_* value -> name used in the diagnostics keys.
 STATUS_NAMES = ('ok', 'warning', 'invalid_input', 'stale_input', 'error')
+_WARNING, _ERROR = 1, 4
+_MAX_LEGS = 16            # stance sizes counted per period (larger ones in the last bin)
+_REASON_CHARS = 200       # characters of a reason quoted in a status message
 
 
 class _Ring:
@@ -62,6 +75,9 @@ class _Input:
         self.last_wall: float | None = None
         self.lost = 0
         self.lost_period = 0
+        self.gaps = 0
+        self.gaps_period = 0
+        self.last_seq: int | None = None
 
 
 class NodeDiagnostics:
@@ -84,8 +100,15 @@ class NodeDiagnostics:
         self.reports_period = np.zeros(len(STATUS_NAMES), dtype=np.int64)
         self.compute_ms = _Ring(ring_size)
         self.latency_ms = _Ring(ring_size)
+        self.stance_period = np.zeros(_MAX_LEGS + 1, dtype=np.int64)
         self.period_start: float | None = None
         self.last_reason = ''
+        self.last_warning = ''
+        self.model_error = ''
+        self.config_errors: list[str] = []
+        self.output_errors = 0
+        self.output_errors_period = 0
+        self.last_output_error = ''
 
     # -- recording (per message) -----------------------------------------------------------
 
@@ -96,6 +119,28 @@ class NodeDiagnostics:
         c.period += 1
         c.last_wall = wall
 
+    def sequence(self, topic: str, seq: int | None) -> int:
+        """Check a message's publication sequence number; return how many are missing.
+
+        The sequence numbers of one publisher (DDS writer) increase by one per message, so a
+        jump of ``k + 1`` means ``k`` messages published but never received: dropped from a
+        full keep-last queue (the node fell ``qos_depth`` behind) or by a best-effort link.
+        A smaller number than the last one means a new publisher (restart) and starts over.
+        Assumes one publisher per input topic (several interleaved publishers show gaps).
+
+        :param seq: ``publication_sequence_number`` of the message info (None: unknown).
+        """
+        c = self.inputs[topic]
+        if seq is None:
+            return 0
+        missing = 0
+        if c.last_seq is not None and seq > c.last_seq + 1:
+            missing = seq - c.last_seq - 1
+            c.gaps += missing
+            c.gaps_period += missing
+        c.last_seq = seq
+        return missing
+
     def lost(self, topic: str, count: int) -> None:
         """Count ``count`` messages reported lost by the middleware on ``topic``."""
         c = self.inputs[topic]
@@ -103,8 +148,13 @@ class NodeDiagnostics:
         c.lost_period += count
 
     def evaluated(self, status: int, compute_time_s: float, latency_s: float | None,
-                  reason: str = '') -> None:
-        """Count one report of ``status`` (STATUS_* value), its compute time and latency."""
+                  reason: str = '', stance_legs: int | None = None) -> None:
+        """Count one report of ``status`` (STATUS_* value), its compute time and latency.
+
+        :param reason: the report's status message (kept as the last error or warning).
+        :param stance_legs: number of stance legs of an evaluated report (None: not
+            evaluated).
+        """
         i = min(int(status), len(STATUS_NAMES) - 1)
         self.reports_total[i] += 1
         self.reports_period[i] += 1
@@ -113,6 +163,16 @@ class NodeDiagnostics:
             self.latency_ms.add(1e3 * latency_s)
         if i >= 2 and reason:
             self.last_reason = reason
+        elif i == _WARNING and reason:
+            self.last_warning = reason
+        if stance_legs is not None:
+            self.stance_period[min(int(stance_legs), _MAX_LEGS)] += 1
+
+    def output_failed(self, reason: str) -> None:
+        """Count one output message (polytopes, markers) that could not be built."""
+        self.output_errors += 1
+        self.output_errors_period += 1
+        self.last_output_error = reason
 
     # -- building (per period) -------------------------------------------------------------
 
@@ -130,31 +190,39 @@ class NodeDiagnostics:
         for c in self.inputs.values():
             c.period = 0
             c.lost_period = 0
+            c.gaps_period = 0
         self.reports_period[:] = 0
+        self.stance_period[:] = 0
+        self.output_errors_period = 0
         self.compute_ms.clear()
         self.latency_ms.clear()
         return msg
 
     def _inputs_status(self, wall: float, dt: float | None) -> DiagnosticStatus:
-        values, stale, lost = [], [], []
+        values, stale, lost, gaps = [], [], [], []
         for topic, c in self.inputs.items():
             rate = float('nan') if dt is None else c.period / dt
             age = float('inf') if c.last_wall is None else wall - c.last_wall
             values += [KeyValue(key=f'{topic} rate [Hz]', value=f'{rate:.1f}'),
                        KeyValue(key=f'{topic} age [s]', value=f'{age:.3f}'),
                        KeyValue(key=f'{topic} received (total)', value=str(c.total)),
-                       KeyValue(key=f'{topic} lost (total)', value=str(c.lost))]
+                       KeyValue(key=f'{topic} lost (total)', value=str(c.lost)),
+                       KeyValue(key=f'{topic} sequence gaps (total)', value=str(c.gaps))]
             if self.stale_timeout_s > 0.0 and age > self.stale_timeout_s:
                 stale.append(topic)
             if c.lost_period:
                 lost.append(f'{topic} ({c.lost_period})')
+            if c.gaps_period:
+                gaps.append(f'{topic} ({c.gaps_period})')
         first = next(iter(self.inputs.values()), None)
         if first is not None and first.total == 0:
             level, text = DiagnosticStatus.ERROR, f'no {next(iter(self.inputs))} received yet'
-        elif stale or lost:
+        elif stale or lost or gaps:
             level = DiagnosticStatus.WARN
             text = '; '.join(([f'stale: {", ".join(stale)}'] if stale else [])
-                             + ([f'lost: {", ".join(lost)}'] if lost else []))
+                             + ([f'lost: {", ".join(lost)}'] if lost else [])
+                             + ([f'missing from sequence: {", ".join(gaps)}'] if gaps
+                                else []))
         else:
             level, text = DiagnosticStatus.OK, 'inputs fresh'
         return DiagnosticStatus(level=level, name=f'{self.node_name}: inputs', message=text,
@@ -167,22 +235,47 @@ class NodeDiagnostics:
                   for name, n in zip(STATUS_NAMES, self.reports_period)]
         values += [KeyValue(key=f'reports {name} (total)', value=str(int(n)))
                    for name, n in zip(STATUS_NAMES, self.reports_total)]
+        legs = ', '.join(f'{k}:{int(n)}' for k, n in enumerate(self.stance_period) if n)
         values += [KeyValue(key='compute time p50 [ms]', value=f'{c50:.3f}'),
                    KeyValue(key='compute time p99 [ms]', value=f'{c99:.3f}'),
                    KeyValue(key='latency stamp to publish p50 [ms]', value=f'{l50:.3f}'),
                    KeyValue(key='latency stamp to publish p99 [ms]', value=f'{l99:.3f}'),
-                   KeyValue(key='last error', value=self.last_reason)]
-        bad = int(self.reports_period[2:].sum())
-        n = int(self.reports_period.sum())
+                   KeyValue(key='reports by stance legs (period)', value=legs),
+                   KeyValue(key='last error', value=self.last_reason),
+                   KeyValue(key='last warning', value=self.last_warning),
+                   KeyValue(key='robot model error', value=self.model_error),
+                   KeyValue(key='rejected parameters', value='; '.join(self.config_errors)),
+                   KeyValue(key='output errors (total)', value=str(self.output_errors)),
+                   KeyValue(key='last output error', value=self.last_output_error)]
+        period = self.reports_period
+        bad = int(period[2:].sum())
+        warned = int(period[_WARNING])
+        n = int(period.sum())
         period_ms = 1e3 / input_rate if input_rate > 0.0 else float('inf')
+        texts = []
+        if self.model_error:
+            texts.append(self.model_error[:_REASON_CHARS])
         if bad:
+            texts.append(f'{bad} of {n} reports not evaluated; last: '
+                         f'{self.last_reason[:_REASON_CHARS]}')
+        if self.config_errors:
+            texts.append(f'{len(self.config_errors)} parameters rejected at startup, '
+                         f'defaults used: {self.config_errors[0][:_REASON_CHARS]}')
+        if warned:
+            texts.append(f'{warned} of {n} reports with warnings; last: '
+                         f'{self.last_warning[:_REASON_CHARS]}')
+        if self.output_errors_period:
+            texts.append(f'{self.output_errors_period} outputs not built; last: '
+                         f'{self.last_output_error[:_REASON_CHARS]}')
+        if c50 > period_ms:
+            texts.append(f'falling behind: compute time p50 {c50:.2f} ms > joint_states '
+                         f'period {period_ms:.2f} ms')
+        if self.model_error or period[_ERROR] or self.output_errors_period:
+            level = DiagnosticStatus.ERROR
+        elif texts:
             level = DiagnosticStatus.WARN
-            text = f'{bad} of {n} reports not evaluated; last: {self.last_reason[:120]}'
-        elif c50 > period_ms:
-            level = DiagnosticStatus.WARN
-            text = (f'falling behind: compute time p50 {c50:.2f} ms > joint_states period '
-                    f'{period_ms:.2f} ms')
         else:
-            level, text = DiagnosticStatus.OK, f'{n} reports'
+            level, texts = DiagnosticStatus.OK, [f'{n} reports']
         return DiagnosticStatus(level=level, name=f'{self.node_name}: evaluation',
-                                message=text, hardware_id=self.hardware_id, values=values)
+                                message='; '.join(texts), hardware_id=self.hardware_id,
+                                values=values)

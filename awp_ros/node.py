@@ -25,6 +25,23 @@ pipeline parameters (:data:`awp_ros.pipeline.PARAMETER_DOCS`) and the read-only
 Changes of the robot keys (e.g. ``friction_coefficient``, ``torque_limits.lf_kfe_joint``)
 and pipeline parameters at runtime are validated and take effect with the next joint
 state; invalid values are rejected with the reason.
+
+Failures never stop the node: without a usable robot model (e.g. a malformed
+``robot_description``) it stays up, answers every joint state with a ``STATUS_ERROR``
+report giving the reason, reports it on ``/diagnostics`` (ERROR) and builds the model as
+soon as a corrected ``robot_description`` (or robot key) is set at runtime; an output
+message (polytopes, markers) that cannot be built is logged and counted in
+``/diagnostics``, and the next message is processed as usual; a parameter of the wrong
+type or range at startup is logged, listed in ``/diagnostics`` and replaced by its default
+(an integer given for a double is taken as that double).
+
+Nothing is lost silently. A node slower than its input lets the reliable input queue
+grow (``qos_depth`` joint states); beyond it DDS replaces the oldest queued joint states
+without any event, so the node counts the gaps in each publisher's sequence numbers: the
+next report carries a warning with the count and ``/diagnostics`` the total. With
+``max_queue_delay_s`` > 0 the node sheds load instead: a joint state that waited longer
+than that in the queue is answered at once with a ``STATUS_STALE_INPUT`` report (not
+evaluated), so every joint state still gets its report and latency stays bounded.
 """
 
 from __future__ import annotations
@@ -43,6 +60,7 @@ from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescr
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
+from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -53,7 +71,7 @@ from visualization_msgs.msg import MarkerArray
 
 from awp_ros.conversions import error_report, stamp_to_ns
 from awp_ros.diagnostics import NodeDiagnostics
-from awp_ros.errors import AwpError
+from awp_ros.errors import AwpError, ConfigError
 from awp_ros.pipeline import PARAMETER_DOCS, Pipeline, PipelineParams
 from awp_ros.robot_config import load_config, RobotConfig
 
@@ -91,6 +109,11 @@ NODE_PARAMETER_DOCS = {
     'executor': (_T.STRING, 'single_threaded', "rclpy executor: 'single_threaded' or "
                  "'events' (rclpy.experimental.EventsExecutor)", True),
     'diagnostics_period_s': (_T.DOUBLE, 1.0, 'period of /diagnostics [s]', True),
+    'max_queue_delay_s': (_T.DOUBLE, 0.0, 'load shedding: a joint state that waited longer '
+                          'than this in the input queue (the node is slower than its input) '
+                          'is answered at once with a STATUS_STALE_INPUT report instead of '
+                          'being evaluated, so latency stays bounded and the queue never '
+                          'overflows [s]; 0 = evaluate every joint state however late', False),
     'blas_threads': (_T.INTEGER, 1, 'threads of the BLAS under numpy/scipy in this process '
                      '(threadpoolctl); 1 avoids the stalls of busy-waiting BLAS threads on '
                      'cores shared with DDS and other processes; 0 = leave as is', True),
@@ -107,6 +130,7 @@ class AwpNode(Node):
 
     def __init__(self, node_name: str = 'awp_node', **kwargs) -> None:
         super().__init__(node_name, **kwargs)
+        self.config_errors: list[str] = []
         for name, (ptype, default, text, ro) in NODE_PARAMETER_DOCS.items():
             self._declare(name, default, text, read_only=ro)
         for name, f in _FIELDS.items():
@@ -116,18 +140,25 @@ class AwpNode(Node):
                                          self.get_logger())
         self.pipeline: Pipeline | None = None
         self.model_error = ''
+        self._limits_declared = False
+        self.max_queue_delay_s = float(self.get_parameter('max_queue_delay_s').value)
         self._declare_robot_parameters()
         try:
-            self.pipeline = Pipeline(self._robot_config(), self._pipeline_params())
+            self.pipeline = Pipeline(self._robot_config(), self._pipeline_params(),
+                                     input_buffer=self.get_parameter('qos_depth').value)
             self._declare_torque_limits()
         except (AwpError, ValueError) as exc:
             self.model_error = f'no robot model: {exc}'
-            self.get_logger().error(self.model_error)
+            self.get_logger().error(f'{self.model_error}; answering every joint state with '
+                                    'STATUS_ERROR until a corrected robot_description (or '
+                                    'robot key) is set')
         p = self._pipeline_params()
         name = self.pipeline.config.robot_name if self.pipeline else 'unknown'
         topics = ['joint_states', 'contacts'] + (['imu'] if p.use_imu else [])
-        self.diagnostics = NodeDiagnostics(self.get_name(), name, topics,
-                                           stale_timeout_s=p.stale_timeout_s)
+        self.diagnostics = NodeDiagnostics(self.get_fully_qualified_name().lstrip('/'), name,
+                                           topics, stale_timeout_s=p.stale_timeout_s)
+        self.diagnostics.model_error = self.model_error
+        self.diagnostics.config_errors = self.config_errors
         self._wall = Clock(clock_type=ClockType.SYSTEM_TIME)
         self._create_interfaces(p)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -138,11 +169,30 @@ class AwpNode(Node):
                  dynamic: bool = False):
         desc = ParameterDescriptor(name=name, description=text, read_only=read_only,
                                    dynamic_typing=dynamic)
-        if name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz', 'diagnostics_period_s'):
+        if name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz', 'diagnostics_period_s',
+                    'max_queue_delay_s'):
             desc.floating_point_range = [FloatingPointRange(from_value=0.0, to_value=1e6)]
         if name == 'qos_depth':
             desc.integer_range = [IntegerRange(from_value=1, to_value=1_000_000)]
-        return self.declare_parameter(name, default, desc)
+        try:
+            return self.declare_parameter(name, default, desc)
+        except (InvalidParameterTypeException, InvalidParameterValueException) as first:
+            error: Exception = first
+            override = self._overrides()[name].value
+        # A bad value from the params file or -p: an integer where a double is expected is
+        # taken as that double; anything else is reported and the default used.
+        if isinstance(default, float) and isinstance(override, int) \
+                and not isinstance(override, bool):
+            try:
+                return self.declare_parameter(
+                    name, float(override), desc, ignore_override=True)
+            except InvalidParameterValueException as second:
+                error = second
+        reason = (f'parameter {name} = {override!r} rejected ({type(error).__name__}: '
+                  f'{str(error).splitlines()[0]}); using the default {default!r}')
+        self.get_logger().error(reason)
+        self.config_errors.append(reason)
+        return self.declare_parameter(name, default, desc, ignore_override=True)
 
     def _overrides(self) -> dict:
         """Return the parameter overrides (params file, -p) by name."""
@@ -188,13 +238,26 @@ class AwpNode(Node):
         return out
 
     def _declare_torque_limits(self) -> None:
-        """Declare ``torque_limits.<joint>`` for every leg joint, with the limit in use."""
+        """Declare ``torque_limits.<joint>`` for every leg joint, with the limit in use.
+
+        One call for all of them: after a runtime model recovery the on-set callback then
+        runs once (the values are the ones in use, so nothing changes).
+        """
+        new = []
         for leg in self.pipeline.evaluator.model.legs.values():
             for j, lo, hi in zip(leg.joints, leg.tau_min.tolist(), leg.tau_max.tolist()):
                 key = f'torque_limits.{j}'
                 if not self.has_parameter(key):
-                    self._declare(key, _limit_value((lo, hi)),
-                                  ROBOT_PREFIXES['torque_limits'][1].format(j), dynamic=True)
+                    text = ROBOT_PREFIXES['torque_limits'][1].format(j)
+                    new.append((key, _limit_value((lo, hi)),
+                                ParameterDescriptor(name=key, description=text,
+                                                    dynamic_typing=True)))
+        self._limits_declared = True
+        if new:
+            try:
+                self.declare_parameters('', new)
+            except Exception as exc:  # noqa: BLE001 -- the limits stay in use, undeclared
+                self.get_logger().warning(f'torque_limits.* parameters not declared: {exc}')
 
     def _robot_values(self, changes: dict | None = None) -> dict:
         """Return the robot keys' values (with ``changes``) as plain Python values."""
@@ -214,6 +277,10 @@ class AwpNode(Node):
         urdf = (changes or {}).get('robot_description',
                                    self.get_parameter('robot_description').value)
         if urdf:
+            if not isinstance(urdf, str) or not urdf.lstrip().startswith('<'):
+                text = urdf[:60] if isinstance(urdf, str) else urdf
+                raise ConfigError(f'robot_description must be URDF XML (starting with <), '
+                                  f'got {text!r}')
             config = replace(config, urdf=urdf)
         return config
 
@@ -231,8 +298,12 @@ class AwpNode(Node):
             robot = {k for k in changes if k in ROBOT_PARAMETER_DOCS or k == 'robot_description'
                      or k.split('.', 1)[0] in ROBOT_PREFIXES}
             if self.pipeline is None and robot:
-                self.pipeline = Pipeline(self._robot_config(changes), new_params)
-                self.model_error = ''
+                self.pipeline = Pipeline(self._robot_config(changes), new_params,
+                                         input_buffer=self.get_parameter('qos_depth').value)
+                self.model_error = self.diagnostics.model_error = ''
+                self.diagnostics.hardware_id = self.pipeline.config.robot_name
+                self.get_logger().info(f'robot model {self.pipeline.config.robot_name!r} '
+                                       'built; evaluating joint states')
             elif self.pipeline is not None:
                 if robot:
                     self.pipeline.set_config(self._robot_config(changes))
@@ -242,6 +313,8 @@ class AwpNode(Node):
             self.get_logger().warning(reason)
             return SetParametersResult(successful=False, reason=reason)
         self.diagnostics.stale_timeout_s = new_params.stale_timeout_s
+        if 'max_queue_delay_s' in changes:
+            self.max_queue_delay_s = float(changes['max_queue_delay_s'])
         return SetParametersResult(successful=True)
 
     # -- interfaces ------------------------------------------------------------------------
@@ -250,8 +323,10 @@ class AwpNode(Node):
         depth = self.get_parameter('qos_depth').value
         rel = self.get_parameter('qos_reliability').value
         if rel not in ('reliable', 'best_effort'):
-            self.get_logger().error(f"qos_reliability must be 'reliable' or 'best_effort', "
-                                    f"got {rel!r}; using 'reliable'")
+            reason = (f"qos_reliability must be 'reliable' or 'best_effort', got {rel!r}; "
+                      "using 'reliable'")
+            self.get_logger().error(reason)
+            self.config_errors.append(reason)
             rel = 'reliable'
         reliability = ReliabilityPolicy.RELIABLE if rel == 'reliable' \
             else ReliabilityPolicy.BEST_EFFORT
@@ -274,7 +349,13 @@ class AwpNode(Node):
             subs.append(('imu', Imu, self._on_imu))
         subs.append(('joint_states', JointState, self._on_joint_state))
         self.subscriptions_ = []
+        # The message info (publication sequence number, reception time) drives the loss
+        # count and the load shedding; rclpy's EventsExecutor cannot pass it (its callbacks
+        # take the message only), so with it both are off.
+        with_info = self.get_parameter('executor').value != 'events'
         for topic, mtype, callback in subs:
+            if not with_info:
+                callback = (lambda msg, f=callback: f(msg, {}))  # noqa: E731
             events = SubscriptionEventCallbacks(
                 message_lost=lambda info, t=topic: self.diagnostics.lost(
                     t, info.total_count_change))
@@ -291,45 +372,95 @@ class AwpNode(Node):
 
     # -- callbacks -------------------------------------------------------------------------
 
-    def _on_contacts(self, msg: ContactState) -> None:
+    def _on_contacts(self, msg: ContactState, info: dict) -> None:
         self.diagnostics.received('contacts', time.monotonic())
+        self.diagnostics.sequence('contacts', info.get('publication_sequence_number'))
         if self.pipeline is not None:
             self.pipeline.on_contacts(msg)
 
-    def _on_imu(self, msg: Imu) -> None:
+    def _on_imu(self, msg: Imu, info: dict) -> None:
         self.diagnostics.received('imu', time.monotonic())
+        self.diagnostics.sequence('imu', info.get('publication_sequence_number'))
         if self.pipeline is not None:
             self.pipeline.on_imu(msg)
 
-    def _on_joint_state(self, msg: JointState) -> None:
+    def _on_joint_state(self, msg: JointState, info: dict) -> None:
         self.diagnostics.received('joint_states', time.monotonic())
+        missing = self.diagnostics.sequence('joint_states',
+                                            info.get('publication_sequence_number'))
+        notes = [f'{missing} joint states published before this one never arrived (a full '
+                 'input queue: the node fell qos_depth behind; or a lossy link); they got no '
+                 'report'] if missing else []
+        delay = _queue_delay(info)
         if self.pipeline is None:
-            header = Header(stamp=msg.header.stamp, frame_id='com_world_aligned')
-            report = error_report(header, FeasibilityReport.STATUS_ERROR, self.model_error)
-            self.pub_report.publish(report)
-            self.diagnostics.evaluated(report.status, 0.0, None, report.status_message)
+            self._answer_unevaluated(msg, FeasibilityReport.STATUS_ERROR,
+                                     '; '.join(notes + [self.model_error]))
             return
-        cycle = self.pipeline.on_joint_state(msg)
+        if 0.0 < self.max_queue_delay_s < delay:
+            self._answer_unevaluated(msg, FeasibilityReport.STATUS_STALE_INPUT, '; '.join(
+                notes + [f'not evaluated: the joint state waited {delay:.3f} s in the input '
+                         f'queue (max_queue_delay_s {self.max_queue_delay_s:g}); the node is '
+                         'overloaded and sheds load']))
+            return
+        if not self._limits_declared:           # the model was built at runtime
+            self._declare_torque_limits()
+        cycle = self.pipeline.on_joint_state(msg, notes)
         report = cycle.report
         self.pub_report.publish(report)
         if cycle.result is not None:
             for kind, pub in self.pub_wrench.items():
                 if pub.get_subscription_count():
-                    out = getattr(cycle, kind)()
-                    if out is not None:
-                        pub.publish(out)
+                    self._publish_output(pub, kind, getattr(cycle, kind))
             if self.pub_legs.get_subscription_count():
-                self.pub_legs.publish(cycle.leg_polytopes())
+                self._publish_output(self.pub_legs, 'leg_polytopes', cycle.leg_polytopes)
         if cycle.markers_due and self.pub_markers.get_subscription_count():
-            self.pub_markers.publish(cycle.markers())
+            self._publish_output(self.pub_markers, 'markers', cycle.markers)
+        self.diagnostics.evaluated(report.status, report.compute_time, self._latency(msg),
+                                   report.status_message,
+                                   None if cycle.result is None else len(cycle.result.stance))
+
+    def _answer_unevaluated(self, msg: JointState, status: int, reason: str) -> None:
+        """Publish the report of a joint state that is not evaluated (fast path)."""
+        t0 = time.perf_counter()
+        frame = self.pipeline.params.wrench_frame_id if self.pipeline is not None \
+            else self.get_parameter('wrench_frame_id').value
+        report = error_report(Header(stamp=msg.header.stamp, frame_id=frame), status, reason)
+        report.compute_time = time.perf_counter() - t0
+        self.pub_report.publish(report)
+        self.diagnostics.evaluated(status, report.compute_time, self._latency(msg), reason)
+
+    def _latency(self, msg: JointState) -> float | None:
+        """Return wall time now minus the joint-state stamp [s], None when not plausible."""
         latency = (self._wall.now().nanoseconds - stamp_to_ns(msg.header.stamp)) * 1e-9
-        self.diagnostics.evaluated(report.status, report.compute_time,
-                                   latency if 0.0 <= latency < 60.0 else None,
-                                   report.status_message)
+        return latency if 0.0 <= latency < 60.0 else None
+
+    def _publish_output(self, pub, name: str, build) -> None:
+        """Publish ``build()`` unless None; a failure is logged and counted, not raised."""
+        try:
+            out = build()
+            if out is not None:
+                pub.publish(out)
+        except Exception as exc:  # noqa: BLE001 -- the report went out; keep the node up
+            reason = f'{name}: {type(exc).__name__}: {exc}'
+            self.diagnostics.output_failed(reason)
+            self.get_logger().error(f'could not build {reason}', throttle_duration_sec=1.0)
 
     def _publish_diagnostics(self) -> None:
         self.pub_diag.publish(self.diagnostics.build(self.get_clock().now().to_msg(),
                                                      time.monotonic()))
+
+
+def _queue_delay(info: dict) -> float:
+    """Return how long a message waited since DDS received it [s] (0 when unknown).
+
+    ``received_timestamp`` of the message info is taken by the middleware on the system
+    clock when the sample arrived, so this is the time spent in the subscription's queue,
+    independent of the message's header stamp (which may be simulated or recorded time).
+    """
+    received = info.get('received_timestamp') if info else None
+    if not received:
+        return 0.0
+    return max(0.0, (time.time_ns() - received) * 1e-9)
 
 
 def _limit_blas_threads(n: int, logger):
@@ -370,6 +501,11 @@ def main(args=None) -> int:
     try:
         node = AwpNode()
         kind = node.get_parameter('executor').value
+        if kind not in ('single_threaded', 'events'):
+            reason = (f"executor must be 'single_threaded' or 'events', got {kind!r}; using "
+                      "'single_threaded'")
+            node.get_logger().error(reason)
+            node.config_errors.append(reason)
         if kind == 'events':
             from rclpy.experimental import EventsExecutor
             executor = EventsExecutor()

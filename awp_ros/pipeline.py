@@ -13,8 +13,11 @@ the wall clock:
   already taken newer contacts or imu messages from its queues pairs them as the replay of
   the recorded order does. A report for every message, errors included
   (``STATUS_INVALID_INPUT`` with the reason, ``STATUS_STALE_INPUT`` when the contacts/imu
-  stamp is more than ``stale_timeout_s`` older than the joint state's or none arrived yet,
-  ``STATUS_ERROR`` for an internal failure);
+  stamp is more than ``stale_timeout_s`` older (or newer: clocks that disagree) than the
+  joint state's or none arrived yet, ``STATUS_ERROR`` for an internal failure; reasons are
+  cut to ``MAX_REASON_CHARS``). Joints the model does not have are ignored with a warning
+  (an arm's joints in the robot's joint_states); no foot in contact is evaluated (every
+  set is {0}) with a warning;
 - ``awp``, ``fwp``, ``leg_polytopes`` every evaluated cycle; the FWS (H-rep, directional
   and Euclidean margins) when ``fws_rate_hz`` says so by stamp (0 = every cycle) or the
   stance set changed, the reports carrying the latest FWS with its ``fws_stamp``;
@@ -30,8 +33,8 @@ adds a warning to that report. Output messages other than the report are built o
 
 from __future__ import annotations
 
-from collections import deque
-from collections.abc import Mapping
+from bisect import bisect_right
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, fields, replace
 import math
 import time
@@ -51,12 +54,16 @@ from awp_ros.evaluator import FeasibilityEvaluator, FeasibilityResult, WrenchSet
 from awp_ros.markers import build_markers, error_markers, MarkerStyle, quaternion_matrix
 from awp_ros.robot_config import RobotConfig
 
-__all__ = ['Cycle', 'OUTPUTS', 'PARAMETER_DOCS', 'Pipeline', 'PipelineParams']
+__all__ = ['Cycle', 'MAX_REASON_CHARS', 'OUTPUTS', 'PARAMETER_DOCS', 'Pipeline',
+           'PipelineParams']
 
 #: Output topics (relative to the node, ``~/<name>``) in the order of :meth:`Cycle.messages`.
 OUTPUTS = ('report', 'awp', 'fwp', 'fws', 'leg_polytopes', 'markers')
 
 _S = FeasibilityReport
+
+#: Longest ``status_message`` of a report (longer reasons are cut, marked with '...').
+MAX_REASON_CHARS = 1000
 
 
 @dataclass(frozen=True)
@@ -147,24 +154,59 @@ def _ros_parameters(params: Mapping) -> dict:
 
 
 class _InputBuffer:
-    """The received messages of one input topic not yet passed by a joint state's stamp."""
+    """The received messages of one input topic not yet passed by a joint state's stamp.
 
-    def __init__(self, maxlen: int = 1000) -> None:
-        self.items: deque = deque(maxlen=maxlen)
+    Kept as parallel lists from ``head`` on (stamps [ns], messages) so that a node lagging
+    behind its joint states, which holds the contacts of the whole lag, finds the one to
+    pair in O(log n) (bisection while the stamps are non-decreasing, the usual case) and
+    drops the passed ones in O(1) amortised. At most ``maxlen`` are kept (the oldest go
+    first; a joint state that then finds only later contacts is reported stale).
+    """
+
+    def __init__(self, maxlen: int = 10000) -> None:
+        self.maxlen = max(int(maxlen), 1)
+        self.stamps: list[int] = []
+        self.msgs: list = []
+        self.head = 0
+        self.sorted = True
+
+    def __len__(self) -> int:
+        return len(self.stamps) - self.head
 
     def add(self, msg) -> None:
-        self.items.append((stamp_to_ns(msg.header.stamp), msg))
+        ns = stamp_to_ns(msg.header.stamp)
+        if len(self) and ns < self.stamps[-1]:
+            self.sorted = False
+        self.stamps.append(ns)
+        self.msgs.append(msg)
+        if len(self) > self.maxlen:
+            self.head += 1
+        self._compact()
 
     def pick(self, ns: int):
-        """Return the newest message stamped at or before ``ns`` (dropping older ones), else
-        the earliest one; None when empty."""
-        items = self.items
-        for i in range(len(items) - 1, -1, -1):
-            if items[i][0] <= ns:
-                for _ in range(i):
-                    items.popleft()
-                return items[0][1]
-        return items[0][1] if items else None
+        """Return the newest message stamped at or before ``ns``, else the earliest one.
+
+        Messages older than the one returned are dropped; None when empty.
+        """
+        stamps, h = self.stamps, self.head
+        if h == len(stamps):
+            return None
+        if self.sorted:
+            i = bisect_right(stamps, ns, h) - 1
+        else:
+            i = next((i for i in range(len(stamps) - 1, h - 1, -1) if stamps[i] <= ns), -1)
+        if i >= h:
+            self.head = h = i
+            if h == len(stamps) - 1:
+                self.sorted = True
+            self._compact()
+        return self.msgs[self.head]
+
+    def _compact(self) -> None:
+        if self.head > 64 and 2 * self.head > len(self.stamps):
+            del self.stamps[:self.head]
+            del self.msgs[:self.head]
+            self.head = 0
 
 
 class Cycle:
@@ -255,15 +297,20 @@ class Pipeline:
 
     :param config: the robot config (a name or YAML path is loaded by the evaluator).
     :param params: the pipeline parameters.
+    :param input_buffer: contacts (and imu) messages kept for joint states that have not
+        caught up with them (the node passes its ``qos_depth``: a node lagging by that many
+        joint states still pairs each with the contacts current at its stamp).
     :raises ConfigError, ModelError: bad config, unusable URDF, bad marker_frame_id.
     """
 
-    def __init__(self, config: RobotConfig | str, params: PipelineParams | None = None) -> None:
+    def __init__(self, config: RobotConfig | str, params: PipelineParams | None = None, *,
+                 input_buffer: int = 10000) -> None:
         self.evaluator = FeasibilityEvaluator(config)
+        self._joint_names = frozenset(self.evaluator.model.joint_names)
         self.params = PipelineParams() if params is None else params
         self._check_marker_frame(self.params)
-        self._contacts = _InputBuffer()
-        self._imu = _InputBuffer()
+        self._contacts = _InputBuffer(input_buffer)
+        self._imu = _InputBuffer(input_buffer)
         self._last_js_ns: int | None = None
         self._last_fws_ns: int | None = None
         self._last_marker_ns: int | None = None
@@ -319,6 +366,7 @@ class Pipeline:
         except ConfigError:
             self.evaluator = old
             raise
+        self._joint_names = frozenset(evaluator.model.joint_names)
         self._latest_fws_stance = None
 
     def set_params(self, params: PipelineParams) -> None:
@@ -348,13 +396,17 @@ class Pipeline:
         """Keep an IMU message for the joint states it precedes (used when ``use_imu``)."""
         self._imu.add(msg)
 
-    def on_joint_state(self, msg: JointState) -> Cycle:
-        """Evaluate one joint-state message and return its outputs."""
+    def on_joint_state(self, msg: JointState, notes: Sequence[str] = ()) -> Cycle:
+        """Evaluate one joint-state message and return its outputs.
+
+        :param notes: warnings of the caller about this message (e.g. messages lost
+            before it), put first in the report's ``status_message``.
+        """
         t0 = time.perf_counter()
         p = self.params
         ns = stamp_to_ns(msg.header.stamp)
         header = Header(stamp=msg.header.stamp, frame_id=p.wrench_frame_id)
-        notes = []
+        notes = list(notes)
         if self._last_js_ns is not None and ns < self._last_js_ns:
             notes.append(f'joint_states stamp went back by {(self._last_js_ns - ns) * 1e-9:.6g}'
                          ' s; throttles restarted')
@@ -372,12 +424,17 @@ class Pipeline:
         try:
             stale = self._stale_reason(ns, contacts, imu)
             if stale:
-                report = error_report(header, _S.STATUS_STALE_INPUT, stale)
+                report = error_report(header, _S.STATUS_STALE_INPUT,
+                                      '; '.join(notes + [stale]))
             else:
                 state = robot_state_from_msgs(
-                    msg, contacts, imu,
-                    feet=self.evaluator.feet, use_velocities=p.use_joint_velocities)
+                    msg, contacts, imu, feet=self.evaluator.feet,
+                    use_velocities=p.use_joint_velocities, joint_names=self._joint_names,
+                    notes=notes)
                 result = self.evaluator.evaluate(state, fws=False)
+                if not result.stance:
+                    notes.append('no foot in contact: every wrench set is {0}, no wrench '
+                                 'but zero is feasible')
                 if p.use_imu:
                     R = quaternion_matrix(state.base_orientation)
                 by_rate = p.fws_rate_hz == 0.0 or _due(self._last_fws_ns, ns, p.fws_rate_hz)
@@ -404,6 +461,8 @@ class Pipeline:
             report = error_report(header, _S.STATUS_ERROR,
                                   f'internal error {type(exc).__name__}: {exc}')
             result = None
+        if len(report.status_message) > MAX_REASON_CHARS:
+            report.status_message = report.status_message[:MAX_REASON_CHARS - 3] + '...'
         report.compute_time = time.perf_counter() - t0
         com = np.zeros(3) if result is None else result.com
         marker_header = Header(stamp=msg.header.stamp,
@@ -431,6 +490,10 @@ class Pipeline:
             if timeout > 0 and age > timeout:
                 return (f'{topic} is stale: its stamp is {age * 1e-9:.3f} s older than the '
                         f'joint state (stale_timeout_s {p.stale_timeout_s:g})')
+            if timeout > 0 and -age > timeout:
+                return (f'{topic} stamp is {-age * 1e-9:.3f} s later than the joint state '
+                        f'(stale_timeout_s {p.stale_timeout_s:g}): clocks that disagree, '
+                        'or joint states that went back')
         return ''
 
 

@@ -232,8 +232,14 @@ _RECORDER = textwrap.dedent('''
     got = []
     node.create_subscription(FeasibilityReport, '/awp_node/report', got.append,
                              QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE))
-    print('ready', flush=True)
+    # Ready only once the node's report publisher is discovered: a volatile subscription
+    # misses what was published before it matched.
     deadline = time.monotonic() + timeout
+    while node.count_publishers('/awp_node/report') < 1 and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    for _ in range(10):
+        rclpy.spin_once(node, timeout_sec=0.05)
+    print('ready', flush=True)
     while len(got) < want and time.monotonic() < deadline:
         rclpy.spin_once(node, timeout_sec=0.1)
     for r in got:
