@@ -1,0 +1,101 @@
+"""The pipeline's parameters: :class:`PipelineParams` and their descriptions.
+
+Shared by ``awp_node`` (its parameter descriptors) and the offline replay (a params file).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+import math
+
+from awp_ros.errors import ConfigError
+
+__all__ = ['PARAMETER_DOCS', 'PipelineParams', 'ros_parameters']
+
+
+@dataclass(frozen=True)
+class PipelineParams:
+    """The node-only parameters that shape the pipeline's outputs (see PARAMETER_DOCS)."""
+
+    wrench_frame_id: str = 'com_world_aligned'
+    marker_frame_id: str = ''
+    stale_timeout_s: float = 0.5
+    fws_rate_hz: float = 10.0
+    marker_rate_hz: float = 30.0
+    marker_force_scale: float = 0.0005
+    marker_moment_scale: float = 0.002
+    use_imu: bool = False
+    use_joint_velocities: bool = True
+
+    def __post_init__(self) -> None:
+        """Validate every field (raise ConfigError naming the bad value)."""
+        for name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz'):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ConfigError(f'{name} must be a finite number >= 0, got {value!r}')
+        for name in ('marker_force_scale', 'marker_moment_scale'):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ConfigError(f'{name} must be a finite number > 0, got {value!r}')
+        if not isinstance(self.wrench_frame_id, str) or not self.wrench_frame_id.strip():
+            raise ConfigError(f'wrench_frame_id must be a non-empty frame name, got '
+                              f'{self.wrench_frame_id!r}')
+        if not isinstance(self.marker_frame_id, str):
+            raise ConfigError(f'marker_frame_id must be a string, got {self.marker_frame_id!r}')
+
+    @classmethod
+    def from_dict(cls, params: Mapping) -> PipelineParams:
+        """Read the known keys of a parameters mapping (a params file, its ``ros__parameters``
+        section, or a flat mapping); other keys are ignored.
+
+        :raises ConfigError: a value of the wrong type or range.
+        """
+        flat = ros_parameters(params)
+        kw = {}
+        for f in fields(cls):
+            if f.name in flat:
+                value = flat[f.name]
+                default = f.default
+                if isinstance(default, bool):
+                    if not isinstance(value, bool):
+                        raise ConfigError(f'{f.name} must be true or false, got {value!r}')
+                elif isinstance(default, float):
+                    if isinstance(value, bool) or not isinstance(value, (int, float)):
+                        raise ConfigError(f'{f.name} must be a number, got {value!r}')
+                    value = float(value)
+                kw[f.name] = value
+        return cls(**kw)
+
+
+#: Description of every pipeline parameter (used for the node's descriptors and the README).
+PARAMETER_DOCS = {
+    'wrench_frame_id': 'frame_id of reports and wrench/leg polytopes: origin at the CoM, '
+                       'world-aligned axes (REP 103)',
+    'marker_frame_id': "frame of the markers: '' = wrench_frame_id (set it as RViz's fixed "
+                       'frame, no TF needed), or the URDF root link (e.g. base_link) to '
+                       'overlay the robot model',
+    'stale_timeout_s': 'contacts/imu older than this w.r.t. the joint-state stamp give a '
+                       'STATUS_STALE_INPUT report [s]; 0 disables the check',
+    'fws_rate_hz': 'rate of the FWS computation (H-rep, directional and Euclidean margins) '
+                   'by joint-state stamps [Hz]; 0 = every cycle; a stance change forces it',
+    'marker_rate_hz': 'marker publication rate by joint-state stamps [Hz]; 0 = no markers',
+    'marker_force_scale': 'scene length per newton of the drawn polytopes and wrench [m/N]',
+    'marker_moment_scale': 'scene length per newton-metre of the drawn moment [m/(N.m)]',
+    'use_imu': 'subscribe to imu and take its orientation as the base orientation '
+               '(read-only)',
+    'use_joint_velocities': 'use joint_states velocities (Coriolis terms of the bias '
+                            'torques, seed eq. 1)',
+}
+
+
+def ros_parameters(params: Mapping) -> dict:
+    """Return the merged ``ros__parameters`` sections of a parameters file, or params."""
+    sections = [v['ros__parameters'] for v in params.values()
+                if isinstance(v, Mapping) and isinstance(v.get('ros__parameters'), Mapping)]
+    if isinstance(params.get('ros__parameters'), Mapping):
+        sections.append(params['ros__parameters'])
+    out: dict = {}
+    for section in sections or [params]:
+        out.update(section)
+    return out

@@ -1,0 +1,82 @@
+"""A DDS participant of our own: :class:`Probe` (publish, subscribe, spun in a thread).
+
+Used by the soak test, its driver and the node tests to talk to ``awp_node`` over real DDS;
+:func:`wait_until` polls for the discovery and the messages they wait for.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+
+__all__ = ['Probe', 'wait_until']
+
+
+def wait_until(predicate, timeout_s: float, what: str, *, poll_s: float = 0.02) -> None:
+    """Poll ``predicate()`` until true; raise TimeoutError naming ``what`` after a while.
+
+    :param timeout_s: how long to poll [s].
+    """
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        time.sleep(poll_s)
+    raise TimeoutError(f'timed out after {timeout_s} s waiting for {what}')
+
+
+class Probe:
+    """One DDS participant (an rclpy Context on ``domain_id``) spun in a background thread.
+
+    Publishers and subscriptions are reliable, keep last ``depth``. Received messages are
+    appended to the list :meth:`subscribe` returns (under ``lock``), or passed to a
+    callback.
+    """
+
+    def __init__(self, domain_id: int, name: str = 'awp_probe') -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=int(domain_id))
+        self.node = rclpy.create_node(name, context=self.context)
+        self.lock = threading.Lock()
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        from rclpy.executors import ExternalShutdownException
+        try:
+            self.executor.spin()
+        except (ExternalShutdownException, Exception):  # noqa: BLE001 -- shutting down
+            pass
+
+    @staticmethod
+    def qos(depth: int):
+        """Return a reliable, keep-last ``depth`` QoS profile."""
+        from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                          reliability=ReliabilityPolicy.RELIABLE)
+
+    def publisher(self, mtype, topic: str, depth: int = 1000):
+        """Return a publisher of ``mtype`` on ``topic``."""
+        return self.node.create_publisher(mtype, topic, self.qos(depth))
+
+    def subscribe(self, mtype, topic: str, callback=None, depth: int = 1000) -> list:
+        """Subscribe to ``topic``; return the list the messages are appended to."""
+        got: list = []
+
+        def store(msg) -> None:
+            with self.lock:
+                got.append(msg)
+        self.node.create_subscription(mtype, topic, callback or store, self.qos(depth))
+        return got
+
+    def close(self) -> None:
+        """Stop spinning and leave the domain."""
+        import rclpy
+        self.executor.shutdown(timeout_sec=2.0)
+        self._thread.join(timeout=5)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
