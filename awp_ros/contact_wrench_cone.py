@@ -20,7 +20,10 @@ Equations used below:
         normals of the (r - 1)-subsets built from per-leg choices {none, one ray, an adjacent
         pair, three spanning rays} whose dimensions add up to r - 1 contain every facet
         normal; a candidate is kept iff every lifted ray lies on one side (then it spans an
-        (r-1)-face: a facet), oriented so that a . w <= 0 on the cone.
+        (r-1)-face: a facet), oriented so that a . w <= 0 on the cone; candidates with the
+        same rays on them are the same facet (kept once). The 2032 candidates of 4 legs
+        with 4-sided pyramids cost one matrix product per level of their prefix tree
+        (linalg.subset_cross_products) and one for the side test.
 
 The CWC is returned as a :class:`~awp_ros.polytope.Polytope` although it is an unbounded
 cone: ``b = 0``, no vertices, ``hull_origin = 0`` and ``meta['kind'] = 'cone'``;
@@ -35,9 +38,14 @@ from itertools import product
 import numpy as np
 
 from awp_ros.errors import InputError
-from awp_ros.linalg import (SubsetTree, cross3, orthonormal_span, subset_normals_t, subset_tree,
-                            unique_rows, workspace)
+from awp_ros.linalg import (cross3, distinct_columns, orthonormal_span, subset_cross_products,
+                            subset_tree, SubsetTree, workspace)
 from awp_ros.polytope import Polytope
+from awp_ros.wrench_polytope import lift_points
+
+#: The lifted wrenches ``[r; p_k x r]`` of per-leg rays, eq. (2) (positions (K, 3) [m],
+#: rays (K, N, 3) -> (K, N, 6)); :func:`awp_ros.wrench_polytope.lift_points`.
+lift_rays = lift_points
 
 __all__ = ['contact_wrench_cone', 'friction_pyramid', 'friction_pyramids', 'lift_rays']
 
@@ -125,21 +133,10 @@ def _angles(sides: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
     return np.cos(th), np.sin(th), np.cos(ph), np.sin(ph)
 
 
-def lift_rays(positions: np.ndarray, rays: np.ndarray) -> np.ndarray:
-    """Return the lifted wrenches ``[r; p_k x r]`` of per-leg vectors, eq. (2).
-
-    :param positions: foot positions ``(K, 3)`` [m] relative to the CoM (world axes).
-    :param rays: per-leg vectors ``(K, N, 3)`` [N] (world axes).
-    :return: array ``(K, N, 6)`` [N, N.m].
-    """
-    P = np.asarray(positions, dtype=float)[:, None, :]
-    return np.concatenate([rays, cross3(P, rays)], axis=-1)
-
-
 def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
                         friction_coefficients: np.ndarray | float, sides: int = 4, *,
                         span_tol: float = 1e-9, rank_tol: float = 1e-9,
-                        side_tol: float = 1e-9, dedupe_tol: float = 1e-10,
+                        side_tol: float = 1e-9,
                         frictionless_tol: float = 1e-9) -> Polytope:
     """Return the exact H-representation of the contact wrench cone, eqs. (3-4).
 
@@ -152,8 +149,9 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
     :param sides: pyramid sides N >= 3.
     :param span_tol: relative singular-value cut for the dimension r of the cone's span.
     :param rank_tol: candidate subsets with unit-scaled volume at most this are skipped.
-    :param side_tol: a lifted unit ray with ``a . r`` above this is on the wrong side.
-    :param dedupe_tol: max-norm distance under which two unit normals are the same.
+    :param side_tol: a lifted unit ray with ``a . r`` above this is on the wrong side, and
+        with ``|a . r|`` at most this it lies on the facet ``a`` (candidates with the same
+        rays on them are one facet).
     :param frictionless_tol: a friction coefficient at most this is 0 (the contact's pyramid
         is its normal ray; a pyramid of width ~mu would make rank-deficient candidates).
     :return: the cone as a :class:`Polytope` (``b = 0``, no vertices, ``meta['kind'] =
@@ -186,29 +184,31 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
                         np.zeros((6, 0)), {'kind': 'cone', 'rays': np.zeros((0, 6))})
     rays = _cached_rays(np.ascontiguousarray(N_).tobytes(), mu.tobytes(), sides)
     lifted = lift_rays(P, rays).reshape(K * sides, 6)
-    lifted /= np.linalg.norm(lifted, axis=1)[:, None]
+    lifted /= np.sqrt(np.einsum('ij,ij->i', lifted, lifted))[:, None]
     meta = {'kind': 'cone', 'rays': lifted}
     U = orthonormal_span(lifted, rtol=span_tol)
     r = U.shape[1]
-    rh = U.T @ lifted.T
+    rh = lifted if r == 6 else lifted @ U                               # (K N, r)
     subsets, tree = _candidates(K, sides, r, tuple(bool(m == 0.0) for m in mu))
-    a, valid = subset_normals_t(rh, tree, rank_tol=rank_tol, unit=True)
-    below, above = _sides(rh, a, side_tol)
-    keep = valid & (below | above)
-    a = a[:, keep] * np.where(below[keep], 1.0, -1.0)
-    A = (U @ a).T
-    A = A[unique_rows(A, dedupe_tol)]
+    a = subset_cross_products(rh.T, tree, unit=True)           # (m, r), |a| = volume
+    # Side test, first with the absolute tolerance (|a| <= 1: a superset), then exactly on
+    # the few that pass, with the tolerance scaled by the volume. Reduce along the long axis
+    # (numpy is slow along a short inner one).
+    s = np.matmul(rh, a.T, out=workspace('cwc_sides', (rh.shape[0], a.shape[0])))
+    smax, smin = np.max(s, axis=0), np.min(s, axis=0)
+    cand = np.flatnonzero((smax <= side_tol) | (smin >= -side_tol))
+    a, smax, smin = a[cand], smax[cand], smin[cand]
+    vol = np.sqrt(np.square(a) @ np.ones(r))
+    slack = side_tol * vol
+    below = smax <= slack
+    keep = np.flatnonzero((vol > rank_tol) & (below | (smin >= -slack)))
+    A = a[keep] * (np.where(below[keep], 1.0, -1.0) / vol[keep])[:, None]
+    # One row per facet: a facet is determined by the rays on it (its incidence).
+    tight = np.abs(s[:, cand[keep]]) <= slack[keep]
+    A = A[distinct_columns(tight, own=r - 1)]
+    if r < 6:
+        A = A @ U.T
     return Polytope(r, np.zeros((0, 6)), A, np.zeros(A.shape[0]), origin, U, meta)
-
-
-def _sides(rays: np.ndarray, a: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """Return, per candidate normal, whether all rays are below it or all above it.
-
-    ``below[i]``: ``a_i . r <= tol`` for every ray (column of ``rays``); ``above[i]``:
-    ``a_i . r >= -tol`` for every ray.
-    """
-    s = np.matmul(rays.T, a, out=workspace('cwc_sides', (rays.shape[1], a.shape[1])))
-    return np.max(s, axis=0) <= tol, np.min(s, axis=0) >= -tol
 
 
 @lru_cache(maxsize=256)

@@ -17,10 +17,12 @@ Input (a file argument, or stdin when absent or ``-``), one JSON object::
       "normals": {"lf_foot": [0, 0, 1]}     # optional, per foot, world frame
     }
 
-Output: the :meth:`~awp_ros.evaluator.FeasibilityResult.to_dict` document (``mass``,
+Output: the :meth:`~awp_ros.result.FeasibilityResult.to_dict` document (``mass``,
 ``com``, ``wrench``, ``legs``, ``awp``/``fwp``/``fws`` with ``margin``, ``normal``,
 ``dimension``, ``affine_residual``, ``feasible``, ``halfspaces``; ``fws.directional``;
-``status``, ``warnings``, ``timings_ms``). Non-finite numbers are written as ``null``.
+``status``, ``warnings``, ``timings_ms``: per stage [ms], ``total`` the per-cycle evaluation
+without the FWS, and ``fws`` / ``fws_directional`` / ``fws_margin`` when it is computed).
+Non-finite numbers are written as ``null``.
 Exit status: 0 on success, 2 on bad input (one line on stderr naming it), 1 on an internal
 error.
 """

@@ -40,7 +40,7 @@ from itertools import combinations
 import numpy as np
 
 from awp_ros.errors import InputError
-from awp_ros.linalg import orthonormal_span
+from awp_ros.linalg import cross3, orthonormal_span
 
 __all__ = ['FaceGroup', 'Faces', 'polytope_faces']
 
@@ -79,7 +79,7 @@ class FaceGroup:
         if d == 1:
             key = dirs[:, 0, :]
         elif d == 2:
-            key = _cross(dirs[:, 0, :], dirs[:, 1, :])
+            key = cross3(dirs[:, 0, :], dirs[:, 1, :])
         else:
             key = np.zeros((n, 1))
         if key.shape[1] == 3:
@@ -226,7 +226,7 @@ def _facet_planes(V: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     """Facet normals and incidence of a 3D point set, by brute force over point triples."""
     n = V.shape[0]
     i, j, k = _index_tuples(n, 3)
-    N = _cross(V[j] - V[i], V[k] - V[i])
+    N = cross3(V[j] - V[i], V[k] - V[i])
     area = np.linalg.norm(N, axis=1)              # twice the triangle's area
     longest = np.max(np.linalg.norm(np.stack([V[j] - V[i], V[k] - V[i], V[k] - V[j]]),
                                     axis=2), axis=0)
@@ -299,7 +299,7 @@ def _edge_directions(V: np.ndarray, nf: np.ndarray, ng: np.ndarray, shared: np.n
     The cross product loses accuracy as 1 / sin(angle) for nearly coplanar facets, the chord
     as scale / length for short edges; the better-conditioned one is used.
     """
-    e = _cross(nf, ng)
+    e = cross3(nf, ng)
     sin = np.linalg.norm(e, axis=1)
     e /= np.where(sin > 0.0, sin, 1.0)[:, None]
     s = (V @ e.T).T                               # (edges, n)
@@ -310,13 +310,6 @@ def _edge_directions(V: np.ndarray, nf: np.ndarray, ng: np.ndarray, shared: np.n
     use_chord = length * sin < scale
     e[use_chord] = chord[use_chord] / length[use_chord, None]
     return e
-
-
-def _cross(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Row-wise cross products of (..., 3) arrays (np.cross is slow on small inputs)."""
-    x0, x1, x2 = x[..., 0], x[..., 1], x[..., 2]
-    y0, y1, y2 = y[..., 0], y[..., 1], y[..., 2]
-    return np.stack([x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0], axis=-1)
 
 
 @lru_cache(maxsize=None)
@@ -343,6 +336,6 @@ def _bit_keys(inc: np.ndarray) -> np.ndarray:
 def _plane_bases(N: np.ndarray) -> np.ndarray:
     """Return (F, 2, 3) orthonormal bases of the planes orthogonal to the unit rows of N."""
     axis = np.eye(3)[np.argmin(np.abs(N), axis=1)]
-    u = _cross(N, axis)
+    u = cross3(N, axis)
     u /= np.linalg.norm(u, axis=1)[:, None]
-    return np.stack([u, _cross(N, u)], axis=1)
+    return np.stack([u, cross3(N, u)], axis=1)

@@ -77,10 +77,10 @@ def parallelepipeds(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray,
     G = JinvT * h[:, None, :]
     vertices = center[:, None, :] - (G @ CUBE_SIGNS.T).transpose(0, 2, 1)
     norms = np.sqrt(np.einsum('kij,kij->kj', J, J))         # (K, 3) column norms
-    norms = np.where(norms > 0.0, norms, np.nan)            # NaN rows, no warning
-    Jhat = JT / norms[:, :, None]                           # (K, 3, 3) unit rows
+    inv = 1.0 / np.where(norms > 0.0, norms, np.nan)        # NaN rows, no warning
+    Jhat = JT * inv[:, :, None]                             # (K, 3, 3) unit rows
     A = np.concatenate([Jhat, -Jhat], axis=1)
-    b = np.concatenate([bias - tau_min, tau_max - bias], axis=1) / np.tile(norms, 2)
+    b = np.concatenate([(bias - tau_min) * inv, (tau_max - bias) * inv], axis=1)
     return {'center': center, 'generators': G, 'vertices': vertices, 'A': A, 'b': b,
             'sigma_ratio': ratio}
 

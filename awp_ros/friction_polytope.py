@@ -30,6 +30,7 @@ import numpy as np
 
 from awp_ros.contact_wrench_cone import friction_pyramid, friction_pyramids
 from awp_ros.force_polytope import polytope_from_halfspaces, triples
+from awp_ros.linalg import cross3
 from awp_ros.polytope import Polytope
 
 __all__ = ['friction_halfspaces', 'friction_polytope', 'friction_polytopes', 'friction_rows']
@@ -83,7 +84,7 @@ def friction_polytope(force: Polytope, normal: np.ndarray, mu: float, sides: int
 
 
 def friction_polytopes(forces: Sequence[Polytope], rows: np.ndarray, *, tol: float = 1e-9,
-                       det_tol: float = 1e-12, rank_tol: float = 1e-6) -> list[Polytope]:
+                       det_tol: float = 1e-12) -> list[Polytope]:
     """Return the friction-bounded polytopes (1) of K legs, batched over the legs.
 
     Legs whose force polytopes are full-dimensional with the same number of rows (all
@@ -99,8 +100,6 @@ def friction_polytopes(forces: Sequence[Polytope], rows: np.ndarray, *, tol: flo
         unilateral constraint (see :func:`friction_halfspaces`).
     :param tol: relative tolerance of the vertex enumeration.
     :param det_tol: triples of unit rows with ``|det|`` at most this are skipped.
-    :param rank_tol: the facet normals of a full-dimensional result span R^3: the smallest
-        eigenvalue of the sum of their outer products exceeds this.
     :return: K polytopes, in the order of ``forces``.
     """
     K = len(forces)
@@ -110,7 +109,7 @@ def friction_polytopes(forces: Sequence[Polytope], rows: np.ndarray, *, tol: flo
         if F.dimension == 3 and F.A.shape[0] + rows.shape[1] <= _MAX_BATCH_ROWS:
             groups.setdefault(F.A.shape[0], []).append(k)
     for idx in groups.values():
-        batch = _batched([forces[k] for k in idx], rows[idx], tol, det_tol, rank_tol)
+        batch = _batched([forces[k] for k in idx], rows[idx], tol, det_tol)
         for k, P in zip(idx, batch):
             out[k] = P
     for k in range(K):
@@ -129,8 +128,8 @@ def _intersect(force: Polytope, rows: np.ndarray, tol: float) -> Polytope:
     return polytope_from_halfspaces(A, b, tol=tol)
 
 
-def _batched(forces: list[Polytope], rows: np.ndarray, tol: float, det_tol: float,
-             rank_tol: float) -> list[Polytope | None]:
+def _batched(forces: list[Polytope], rows: np.ndarray, tol: float,
+             det_tol: float) -> list[Polytope | None]:
     """Vertex enumeration of K full-dimensional legs with equal row counts at once.
 
     For the triple (i, j, l) of unit rows, Cramer's rule gives
@@ -145,44 +144,50 @@ def _batched(forces: list[Polytope], rows: np.ndarray, tol: float, det_tol: floa
     m0 = AF.shape[1]
     # n . f >= 0 (the last row, -n) follows from the pyramid when mu > 0 (every facet
     # normal then has a . n < 0): skip it.
-    implied = np.all(np.einsum('kid,kd->ki', rows[:, :-1], rows[:, -1]) > _IMPLIED_TOL)
+    implied = np.all(rows[:, :-1] @ rows[:, -1, :, None] > _IMPLIED_TOL)
     cone = rows[:, :-1] if implied else rows
     A = np.concatenate([AF, cone], axis=1)                                  # (K, m, 3)
-    b = np.concatenate([np.array([F.b for F in forces]),
-                        np.zeros(cone.shape[:2])], axis=1)                   # (K, m)
     m = A.shape[1]
-    eps = tol * np.maximum(1.0, np.max(np.abs(b), axis=1))                  # (K,)
+    b = np.zeros((K, m))
+    b[:, :m0] = [F.b for F in forces]
+    eps = tol * np.maximum(1.0, np.abs(b).max(axis=1))                      # (K,)
     # Parallelepipeds list each facet pair as rows p and p + m0/2 (opposite normals): the
     # triples holding both are singular and are left out.
-    half = m0 // 2 if m0 % 2 == 0 and np.array_equal(AF[:, m0 // 2:], -AF[:, :m0 // 2]) \
-        else 0
-    i, j, l, jl, li, ij, powers = _triple_tables(m, half)
-    x, y, z = A[:, :, 0], A[:, :, 1], A[:, :, 2]
-    C = np.empty((K, m * m, 3))                                             # a_p x a_q
-    C[:, :, 0] = (y[:, :, None] * z[:, None, :] - z[:, :, None] * y[:, None, :]).reshape(K, -1)
-    C[:, :, 1] = (z[:, :, None] * x[:, None, :] - x[:, :, None] * z[:, None, :]).reshape(K, -1)
-    C[:, :, 2] = (x[:, :, None] * y[:, None, :] - y[:, :, None] * x[:, None, :]).reshape(K, -1)
-    c_jl, c_li, c_ij = C[:, jl], C[:, li], C[:, ij]                         # (K, T, 3)
-    det = np.einsum('ktd,ktd->kt', A[:, i], c_jl)
+    half = m0 // 2 if m0 % 2 == 0 and (AF[:, m0 // 2:] == -AF[:, :m0 // 2]).all() else 0
+    tri, pairs, powers = _triple_tables(m, half)
+    C = cross3(A[:, :, None, :], A[:, None, :, :]).reshape(K, m * m, 3)       # a_p x a_q
+    C = C[:, pairs]                             # (K, 3, T, 3): a_j x a_l, a_l x a_i, a_i x a_j
+    det = (A[:, tri[0]] * C[:, 0]) @ np.ones(3)
     good = np.abs(det) > det_tol
-    num = b[:, i, None] * c_jl + b[:, j, None] * c_li + b[:, l, None] * c_ij
-    X = num / np.where(good, det, 1.0)[:, :, None]                          # (K, T, 3)
+    bt = b[:, tri, None]                                                    # (K, 3, T, 1)
+    X = bt[:, 0] * C[:, 0] + bt[:, 1] * C[:, 1] + bt[:, 2] * C[:, 2]
+    X /= np.where(good, det, 1.0)[:, :, None]                               # (K, T, 3)
     slack = b[:, None, :] - X @ A.transpose(0, 2, 1)                        # (K, T, m)
-    feasible = good & np.all(slack >= -eps[:, None, None], axis=2)
-    leg, cand = np.nonzero(feasible)
-    S = slack[leg, cand]
-    tight = np.abs(S) <= eps[leg][:, None]                                   # (n, m)
+    # Feasible: no row violated (counted by a product: reductions along m are slow).
+    violated = (slack < -eps[:, None, None]) @ np.ones(m)
+    leg, cand = np.nonzero(good & (violated == 0.0))
+    tight = np.abs(slack[leg, cand]) <= eps[leg][:, None]                   # (n, m)
     key = leg * (1 << m) + (tight @ powers).astype(np.int64)
-    _, first = np.unique(key, return_index=True)                             # by leg
+    _, first = np.unique(key, return_index=True)                # sorted by leg, then rows
     V, tight, leg = X[leg[first], cand[first]], tight[first], leg[first]
+    starts = np.searchsorted(leg, np.arange(K + 1))
     onehot = (leg[None, :] == np.arange(K)[:, None]).astype(float)          # (K, n_v)
-    facet = onehot @ tight >= 3.0                                            # (K, m)
-    gram = np.einsum('km,kmi,kmj->kij', facet.astype(float), A, A)
-    full = np.linalg.eigvalsh(gram)[:, 0] > rank_tol
+    count = onehot @ tight                                   # (K, m): vertices on each row
+    facet = count >= 3.0
+    # Full-dimensional: 4 vertices or more and no row holding them all (a flat set lies on
+    # its plane's rows); such a leg goes through the general path.
+    nv = np.diff(starts)
+    full = ((nv >= 4) & (count.max(axis=1) < nv)).tolist()
+    # Facet rows of every leg at once, then sliced (views) per leg.
+    Af, bf = A[facet], b[facet]
+    ends = np.cumsum(facet @ np.ones(m)).tolist()
+    bounds = starts.tolist()
     out: list[Polytope | None] = [None] * K
     eye, zero = np.eye(3), np.zeros(3)
-    for k in np.flatnonzero(full):
-        out[k] = Polytope(3, V[leg == k], A[k, facet[k]], b[k, facet[k]], zero, eye)
+    for k in range(K):
+        if full[k]:
+            r0, r1 = int(ends[k - 1]) if k else 0, int(ends[k])
+            out[k] = Polytope(3, V[bounds[k]:bounds[k + 1]], Af[r0:r1], bf[r0:r1], zero, eye)
     return out
 
 
@@ -191,9 +196,9 @@ _IMPLIED_TOL = 1e-12  # min (-a_i . n) of the pyramid facets for n . f >= 0 to b
 
 
 @lru_cache(maxsize=16)
-def _triple_tables(m: int, half: int = 0) -> tuple[np.ndarray, ...]:
-    """Return the triple rows i, j, l, the flat pair indices of (j, l), (l, i), (i, j)
-    into an (m, m) table, and the bit weights 2^p of the rows (as floats).
+def _triple_tables(m: int, half: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return the row triples ``(3, T)``, the flat indices ``(3, T)`` of the pairs (j, l),
+    (l, i), (i, j) into an (m, m) table, and the bit weights 2^p of the rows (as floats).
 
     With ``half > 0`` the triples holding rows p and p + half (p < half) are left out.
     """
@@ -205,4 +210,5 @@ def _triple_tables(m: int, half: int = 0) -> tuple[np.ndarray, ...]:
             | opposite[tri[:, 1], tri[:, 2]]
         tri = tri[~clash]
     i, j, l = tri[:, 0], tri[:, 1], tri[:, 2]
-    return i, j, l, j * m + l, l * m + i, i * m + j, 2.0 ** np.arange(m)
+    pairs = np.stack([j * m + l, l * m + i, i * m + j])
+    return np.ascontiguousarray(tri.T), pairs, 2.0 ** np.arange(m)

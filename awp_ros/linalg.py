@@ -4,34 +4,41 @@ All functions are vectorised over a batch axis: the hot path calls each of them 
 control cycle on every candidate at once, never in a Python loop over candidates.
 
 Normals of hyperplanes spanned by d - 1 vectors of R^d are generalised cross products
-(closed-form cofactors, no pivoting):
+(closed-form cofactors, no pivoting; :mod:`awp_ros.exterior`):
 
     (1) (n)_i = (-1)^i det(B with coordinate i deleted),  n . b_l = 0 for every b_l;
-    (2) the k x k minors of the first k vectors (all coordinate sets R, |R| = k) follow from
-        the (k-1) x (k-1) ones by Laplace expansion along the k-th vector:
-        M_k[R] = sum_p (-1)^(p + k - 1) b_k[R_p] M_{k-1}[R minus R_p];
-    (3) candidates that share their first k vectors share M_k (prefix tree, SubsetTree).
+    (2) the k x k minors of the first k vectors (all coordinate sets R, |R| = k, their
+        wedge product) follow from the (k-1) x (k-1) ones by Laplace expansion along the
+        k-th vector: M_k[R] = sum_p (-1)^(p + k - 1) b_k[R_p] M_{k-1}[R minus R_p];
+    (3) candidates that share their first k vectors share M_k (prefix tree, SubsetTree);
+    (4) with one set of N vectors, a level of the tree is one matrix product: the minors
+        W (n_k, C(d, k)) of the k-prefixes times B = T V (C(d, k), C(d, k + 1) N), T the
+        fixed table of eq. (2), give every prefix extended by every vector; the children are
+        gathered from it (a few times more products than needed, but in BLAS: numpy's
+        call overhead, not the arithmetic, is what costs at these sizes).
 """
 
 from __future__ import annotations
 
-import threading
 from functools import lru_cache
-from itertools import combinations
+import math
+from math import comb
+import threading
 from typing import NamedTuple
 
 import numpy as np
 
+from awp_ros.exterior import hodge_normal, wedge_rows, wedge_table
+
 __all__ = [
     'SubsetTree',
     'cross3',
-    'generic_key',
+    'distinct_columns',
     'hyperplane_normals',
     'orthonormal_span',
+    'subset_cross_products',
     'subset_normals',
-    'subset_normals_t',
     'subset_tree',
-    'unique_rows',
     'workspace',
 ]
 
@@ -43,13 +50,17 @@ class SubsetTree(NamedTuple):
     ``last`` is the prefix's final index, ``parent`` the position of its (k-1)-prefix in the
     previous level (``None`` at level 1). ``leaf`` maps each input row to its full prefix,
     ``None`` when that map is the identity (rows distinct and sorted). ``size`` is the
-    number of input rows, ``width`` the subset size.
+    number of input rows, ``width`` the subset size, ``vectors`` one more than the largest
+    index. ``gathers[k - 1]`` picks level ``k + 1`` out of the products of eq. (4): the flat
+    positions ``(parent * C + c) * vectors + last`` of its ``C`` components ``c``.
     """
 
     levels: tuple[tuple[np.ndarray, np.ndarray | None], ...]
     leaf: np.ndarray | None
     size: int
     width: int
+    vectors: int
+    gathers: tuple[np.ndarray, ...]
 
 
 def subset_tree(subsets: np.ndarray) -> SubsetTree:
@@ -75,19 +86,27 @@ def subset_tree(subsets: np.ndarray) -> SubsetTree:
     leaf = inv if k else np.zeros(m, dtype=np.intp)
     if k and leaf.shape[0] == levels[-1][0].shape[0] and np.array_equal(leaf, np.arange(m)):
         leaf = None
-    return SubsetTree(tuple(levels), leaf, m, k)
+    n_vec = int(subsets.max(initial=-1)) + 1
+    gathers = []
+    for j, (last, parent) in enumerate(levels[1:], start=2):
+        width = comb(k + 1, j) if j < k else k + 1
+        pos = (parent[:, None] * width + np.arange(width)) * n_vec + last[:, None]
+        gathers.append(pos)
+    return SubsetTree(tuple(levels), leaf, m, k, n_vec, tuple(gathers))
 
 
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Return the cross products ``a x b`` along the last axis (length 3), broadcasting.
 
-    Same result as :func:`numpy.cross`, without its per-call overhead (tens of us).
+    Same result as :func:`numpy.cross`, without its per-call overhead (tens of us): a
+    contraction with the Levi-Civita tensor for a few vectors, index shuffles for more.
     """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+    n = max(a.size, b.size)
+    if n <= 72:
+        return np.einsum('ijk,...j,...k->...i', _LEVI_CIVITA, a, b)
+    return a[..., _NEXT] * b[..., _PREV] - a[..., _PREV] * b[..., _NEXT]
 
 
 def hyperplane_normals(B: np.ndarray, rank_tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
@@ -115,43 +134,64 @@ def hyperplane_normals(B: np.ndarray, rank_tol: float = 1e-9) -> tuple[np.ndarra
         raise ValueError(msg)
     scale = np.sqrt(np.einsum('mkd,mkd->km', B, B))
     nonzero = np.all(scale > 0.0, axis=0)
-    Bt = np.divide(B.transpose(1, 2, 0), np.where(scale > 0.0, scale, 1.0)[:, None, :],
-                   out=workspace('hyperplane_vectors', (k, d, m)))
-    n, valid = _cofactor_normals(d, m, [(Bt[j], None) for j in range(k)], rank_tol)
-    valid &= nonzero
-    n[:, ~valid] = 0.0
-    return np.ascontiguousarray(n.T), valid
+    if d == 1:
+        return np.ones((m, 1)), np.ones(m, dtype=bool)
+    U = B / np.where(scale > 0.0, scale, 1.0).T[:, :, None]
+    W = U[:, 0]
+    for j in range(1, k):
+        W = wedge_rows(W, U[:, j], d, j, 1)
+    n = hodge_normal(W)
+    vol = np.sqrt(np.einsum('md,md->m', n, n))
+    valid = (vol > rank_tol) & nonzero
+    n /= np.where(valid, vol, 1.0)[:, None]
+    n[~valid] = 0.0
+    return n, valid
 
 
-def subset_normals(V: np.ndarray, subsets: np.ndarray | SubsetTree,
-                   rank_tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
+def subset_normals(V: np.ndarray, subsets: np.ndarray | SubsetTree, rank_tol: float = 1e-9,
+                   *, unit: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Return unit normals of the hyperplanes spanned by subsets of one set of vectors.
 
     .. math:: n_s \\perp v_j \\;\\forall j \\in S_s, \\quad |S_s| = d - 1, \\quad
               (n_s)_i = (-1)^i \\det \\hat V_{-i, S_s}
 
-    Generalised cross products of the unit-scaled columns ``v_j / |v_j|``, eqs. (1-3) of the
-    module docstring: the minors of each distinct prefix of the :class:`SubsetTree` are
-    expanded once, every step one gather, multiply and add over a whole level (index tables
-    cached per ``d``). The unit-scaled volume ``|n_s|`` (before normalisation) is the rank
-    test. The sign of each normal is arbitrary.
+    The :func:`subset_cross_products` of the unit-scaled columns ``v_j / |v_j|``, normalised:
+    their length, the unit-scaled volume, is the rank test (a subset holding a zero vector
+    has volume 0). The sign of each normal is arbitrary.
 
     :param V: array of shape ``(d, N)``: the vectors as columns (zero columns allowed).
     :param subsets: integer array ``(m, d - 1)`` of column indices, or its
         :func:`subset_tree` (cache it when the pattern repeats).
     :param rank_tol: subsets with unit-scaled volume at most ``rank_tol`` are not valid.
+    :param unit: the columns of ``V`` are already unit vectors (skips the scaling).
     :return: ``(normals, valid)``: normals ``(m, d)`` (zero rows where not valid) and the
         boolean mask ``(m,)``.
     """
-    n, valid = subset_normals_t(V, subsets, rank_tol)
-    return np.ascontiguousarray(n.T), valid
+    n = subset_cross_products(V, subsets, unit=unit)
+    vol = np.sqrt(np.square(n) @ np.ones(n.shape[1]))   # (a product: short-axis sums are slow)
+    valid = vol > rank_tol
+    n *= (1.0 / np.where(valid, vol, 1.0))[:, None]
+    if not np.all(valid):
+        n[~valid] = 0.0
+    return n, valid
 
 
-def subset_normals_t(V: np.ndarray, subsets: np.ndarray | SubsetTree, rank_tol: float = 1e-9,
-                     *, unit: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Return :func:`subset_normals` with the normals as columns, shape ``(d, m)``.
+def subset_cross_products(V: np.ndarray, subsets: np.ndarray | SubsetTree, *,
+                          unit: bool = False) -> np.ndarray:
+    """Return the generalised cross products of subsets of one set of vectors, eq. (1).
 
+    .. math:: (n_s)_i = (-1)^i \\det \\hat V_{-i, S_s}, \\quad |S_s| = d - 1
+
+    of the unit-scaled columns ``v_j / |v_j|`` (``|n_s|`` is the volume they span), by
+    eqs. (1-4) of the module docstring: each level of the :class:`SubsetTree` is one matrix
+    product of the previous level's minors with a table built from ``V`` (eq. 4) and one
+    gather.
+
+    :param V: array of shape ``(d, N)``: the vectors as columns (zero columns allowed).
+    :param subsets: integer array ``(m, d - 1)`` of column indices, or its
+        :func:`subset_tree`.
     :param unit: the columns of ``V`` are already unit vectors (skips the scaling).
+    :return: array ``(m, d)``.
     """
     V = np.asarray(V, dtype=float)
     d = V.shape[0]
@@ -161,22 +201,20 @@ def subset_normals_t(V: np.ndarray, subsets: np.ndarray | SubsetTree, rank_tol: 
         msg = f'subsets of {tree.width} vectors do not span hyperplanes of R^{d}'
         raise ValueError(msg)
     if not tree.levels:
-        return np.ones((1, tree.size)), np.ones(tree.size, dtype=bool)
-    zero = None
+        return np.ones((tree.size, 1))
+    V = V[:, :tree.vectors]
     if not unit:
         norms = np.sqrt(np.einsum('dn,dn->n', V, V))
-        zero = norms <= 0.0
-        V = V / np.where(zero, 1.0, norms)
-    m_leaf = tree.levels[-1][0].shape[0]
-    n, valid = _cofactor_normals(d, m_leaf, [(V[:, last], parent)
-                                             for last, parent in tree.levels], rank_tol)
-    if zero is not None and np.any(zero):
-        valid &= ~_zero_in_subset(tree, zero)
-    if tree.leaf is not None:
-        n, valid = n[:, tree.leaf], valid[tree.leaf]
-    if not np.all(valid):
-        n[:, ~valid] = 0.0
-    return n, valid
+        V = V / np.where(norms > 0.0, norms, 1.0)
+    W = V.T[tree.levels[0][0]]
+    for k, pos in enumerate(tree.gathers, start=1):
+        # Eq. (4): all products of the level's minors with every vector, then the children.
+        B = (_wedge_step(d, k) @ V).reshape(W.shape[1], -1)
+        Y = np.matmul(W, B, out=workspace('minors', (W.shape[0], B.shape[1])))
+        W = Y.take(pos)
+    if d == 2:
+        W = hodge_normal(W)
+    return W if tree.leaf is None else W[tree.leaf]
 
 
 def orthonormal_span(V: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
@@ -184,148 +222,100 @@ def orthonormal_span(V: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
 
     :param V: array of shape ``(k, n)``.
     :param rtol: singular values below ``rtol`` times the largest are dropped.
-    :return: array of shape ``(n, r)`` with ``r`` the numerical rank.
+    :return: array of shape ``(n, r)`` with ``r`` the numerical rank (the identity when
+        ``r = n``).
     """
     V = np.asarray(V, dtype=float)
     n = V.shape[1]
     if V.shape[0] == 0:
         return np.zeros((n, 0))
-    _, s, vt = np.linalg.svd(V, full_matrices=False)
+    s = np.linalg.svd(V, compute_uv=False)
     if s.size == 0 or s[0] == 0.0:
         return np.zeros((n, 0))
     r = int(np.sum(s > rtol * s[0]))
-    return vt[:r].T
+    if r == n:
+        return np.eye(n)
+    return np.linalg.svd(V, full_matrices=False)[2][:r].T
 
 
-def unique_rows(A: np.ndarray, tol: float = 1e-9, key: np.ndarray | None = None) -> np.ndarray:
-    """Return the indices of rows of ``A`` kept after dropping near-duplicates.
+def distinct_columns(mask: np.ndarray, own: int = 0) -> np.ndarray:
+    """Return the sorted index of the first of each group of equal columns of a boolean mask.
 
-    .. math:: i \\text{ dropped} \\iff \\exists j < i : \\|a_i - a_j\\|_\\infty \\le tol
+    Used to keep one facet per incidence set (the generators or rays lying on it). With
+    ``own > 0`` the caller guarantees that each column holds its own candidate's ``own``
+    elements and that candidates differ in them: a column with exactly ``own`` True entries
+    then equals no other column, and only the others are compared (packed into one exact
+    float key each up to 52 rows, else row-wise).
 
-    for rows adjacent in the order of a fixed generic projection ``key = A d`` (one sort,
-    no pairwise table; only rows whose keys are within ``tol |d|_1`` are compared).
-    Near-duplicates that the sort does not make adjacent are kept: the result may still hold
-    duplicates, it never loses a distinct row.
-
-    :param A: array of shape ``(m, n)`` (e.g. unit normals).
-    :param tol: max-norm distance under which two rows are the same.
-    :param key: ``A @ d`` if the caller already has it (see :func:`generic_key`).
-    :return: sorted integer indices into the rows of ``A``.
+    :param mask: boolean array ``(n, m)``.
+    :param own: see above; 0 compares every column.
+    :return: integer indices into the ``m`` columns, increasing.
     """
-    A = np.asarray(A, dtype=float)
-    m, n = A.shape
-    if m < 2:
-        return np.arange(m)
-    direction = _generic_direction(n)
-    if key is None:
-        key = A @ direction
-    order = np.argsort(key)
-    ks = key[order]
-    close = np.flatnonzero(ks[1:] - ks[:-1] <= tol * float(np.sum(np.abs(direction))))
-    keep = np.ones(m, dtype=bool)
-    if close.size:
-        i, j = order[close], order[close + 1]
-        At = A.T  # (n, m): reduce over the short axis 0, vectorised along the pairs
-        dup = np.max(np.abs(At[:, i] - At[:, j]), axis=0) <= tol
-        keep[j[dup]] = False
-    return np.flatnonzero(keep)
-
-
-def generic_key(A: np.ndarray) -> np.ndarray:
-    """Return the sort key of :func:`unique_rows` for the rows of ``A`` (shape ``(m, n)``)."""
-    return np.asarray(A, dtype=float) @ _generic_direction(A.shape[-1])
-
-
-def _zero_in_subset(tree: SubsetTree, zero: np.ndarray) -> np.ndarray:
-    """Return, per full prefix of the tree, whether one of its vectors is zero."""
-    bad = None
-    for last, parent in tree.levels:
-        here = zero[last]
-        bad = here if bad is None else here | bad[parent]
-    return bad
-
-
-def _cofactor_normals(d: int, m: int, levels: list,
-                      rank_tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """Return (normals (d, m), valid) from per-level unit vectors ``(d, n_k)`` and parents.
-
-    Eq. (2) one position ``p`` at a time (temporaries ``(C(d, k), n_k)``); the parents'
-    minors expanded to the level's prefixes, the largest array, live in a reused workspace.
-    """
-    if d == 1:
-        return np.ones((1, m)), np.ones(m, dtype=bool)
-    W = levels[0][0]
-    for (b, parent), (T, SUB, SIGN) in zip(levels[1:], _laplace_tables(d)):
-        if parent is not None:
-            # The largest temporary of the kernel: reuse a per-thread buffer.
-            W = np.take(W, parent, axis=1, mode='clip',
-                        out=workspace('minors', (W.shape[0], parent.shape[0])))
-        Wn = b[T[:, 0]] * W[SUB[:, 0]]
-        if SIGN[0] < 0.0:
-            np.negative(Wn, out=Wn)
-        for p in range(1, T.shape[1]):
-            term = b[T[:, p]] * W[SUB[:, p]]
-            if SIGN[p] > 0.0:
-                Wn += term
-            else:
-                Wn -= term
-        W = Wn
-    # Eq. (1): the minor without coordinate j is row d - 1 - j of combinations(d, d - 1).
-    n = W[::-1] * _alternating(d)[:, None]
-    vol = np.sqrt(np.einsum('dm,dm->m', n, n))
-    valid = vol > rank_tol
-    n /= np.where(valid, vol, 1.0)
-    return n, valid
+    n, m = mask.shape
+    if own:
+        multi = np.flatnonzero(np.ones(n) @ mask > own)
+        if multi.size < 2:
+            return np.arange(m)
+        if 2 * multi.size < m:
+            keep = np.ones(m, dtype=bool)
+            keep[multi] = False
+            keep[multi[distinct_columns(mask[:, multi])]] = True
+            return np.flatnonzero(keep)
+    if n <= 52:
+        key = _bit_weights(n) @ mask
+        first = np.unique(key, return_index=True)[1]
+    else:
+        first = np.unique(mask.T, axis=0, return_index=True)[1]
+    return np.sort(first)
 
 
 _WORKSPACE = threading.local()
+_NEXT, _PREV = np.array([1, 2, 0]), np.array([2, 0, 1])
+_LEVI_CIVITA = np.zeros((3, 3, 3))
+_LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0
+_LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
 
 
-def workspace(name: str, shape: tuple[int, ...]) -> np.ndarray:
+def workspace(name: str, shape: tuple[int, ...], dtype: type = np.float64) -> np.ndarray:
     """Return a per-thread scratch array of ``shape``, reused across calls (contents undefined).
 
     Large temporaries of the per-cycle kernels (hundreds of kB) would otherwise come from
     fresh pages every cycle when the allocator returns freed memory to the system (glibc
-    trims the heap top and serves big blocks by mmap): a page fault per 4 kB. Callers must
-    not let the array escape: the next call with the same name overwrites it.
+    trims the heap top and serves big blocks by mmap): a page fault per 4 kB. A buffer grows
+    to at least twice its size when too small. Callers must not let the array escape: the
+    next call with the same name overwrites it.
     """
     store = getattr(_WORKSPACE, 'arrays', None)
     if store is None:
         store = _WORKSPACE.arrays = {}
-    size = int(np.prod(shape))
+    size = math.prod(shape)
     buf = store.get(name)
-    if buf is None or buf.size < size:
-        buf = store[name] = np.empty(max(size, 1))
+    if buf is None or buf.size < size or buf.dtype != dtype:
+        grow = 2 * buf.size if buf is not None and buf.dtype == dtype else 1
+        buf = store[name] = np.empty(max(size, grow), dtype=dtype)
     return buf[:size].reshape(shape)
 
 
-@lru_cache(maxsize=16)
-def _laplace_tables(d: int) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray], ...]:
-    """Index tables of eq. (2), from the k x k minors to the (k+1) x (k+1) ones.
+@lru_cache(maxsize=32)
+def _wedge_step(d: int, k: int) -> np.ndarray:
+    """Table of eq. (4) from k-vectors to (k+1)-vectors of R^d, shape ``(C(d, k) * C, d)``.
 
-    For each coordinate set ``R`` of size ``k + 1`` (lexicographic) and position ``p``:
-    ``T[R, p] = R[p]``, ``SUB[R, p]`` = index of ``R`` without ``R[p]``,
-    ``SIGN[p] = (-1)^(p + k)`` (expansion along the last column).
+    ``(w ^ v)_s = sum_t sum_j w_t v_j T[t, s, j]`` (:func:`awp_ros.exterior.wedge_table`
+    with the vector's index last), ``C = C(d, k + 1)``. At the last step (``k = d - 2``) the
+    output is the normal of eq. (1) instead (:func:`awp_ros.exterior.hodge_normal`), ``C =
+    d``.
     """
-    tables = []
-    for k in range(1, d - 1):
-        index = {c: i for i, c in enumerate(combinations(range(d), k))}
-        rows = list(combinations(range(d), k + 1))
-        T = np.array(rows, dtype=np.intp)
-        SUB = np.array([[index[r[:p] + r[p + 1:]] for p in range(k + 1)] for r in rows],
-                       dtype=np.intp)
-        SIGN = np.array([(-1.0) ** (p + k) for p in range(k + 1)])
-        tables.append((T, SUB, SIGN))
-    return tuple(tables)
+    T = wedge_table(d, k, 1).transpose(0, 2, 1)
+    if k == d - 2:
+        T = hodge_normal(T.transpose(0, 2, 1)).transpose(0, 2, 1)
+    out = np.ascontiguousarray(T.reshape(-1, d))
+    out.setflags(write=False)
+    return out
 
 
 @lru_cache(maxsize=16)
-def _alternating(d: int) -> np.ndarray:
-    """Return ``[1, -1, 1, ...]`` of length ``d``."""
-    return (-1.0) ** np.arange(d)
-
-
-@lru_cache(maxsize=16)
-def _generic_direction(n: int) -> np.ndarray:
-    """Return a fixed direction with incommensurate components (sort key for unique_rows)."""
-    return np.sqrt(np.arange(2, n + 2, dtype=float)) - 0.5 * np.arange(n) / (n + 1)
+def _bit_weights(n: int) -> np.ndarray:
+    """Return ``2^i`` for ``i < n`` as floats (exact integer keys for ``n <= 52``)."""
+    out = 2.0 ** np.arange(n)
+    out.setflags(write=False)
+    return out

@@ -92,9 +92,9 @@ def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6
     U = P.hull_basis
     o = P.hull_origin
     d = w - o
-    y = U.T @ d
-    residual = float(np.linalg.norm(d - U @ y))
     r = U.shape[1]
+    y = U.T @ d
+    residual = 0.0 if r == n else float(np.linalg.norm(d - U @ y))
     if r == 0:
         return SetMargin(0.0, np.zeros(n), 0, residual, residual <= feasibility_tol)
     # Eq. (1): the rows lie in the hull's direction space, so A w = A proj(w).

@@ -33,6 +33,8 @@ from awp_ros.errors import InputError
 
 __all__ = ['RobotState', 'ResolvedState', 'resolve_state']
 
+_PLAIN_NUMBERS = {float, int}   # exact types (bool is not int here): no per-value check
+
 
 @dataclass
 class RobotState:
@@ -93,17 +95,17 @@ def resolve_state(state: RobotState, joint_names: Sequence[str], feet: Sequence[
     q = _joint_vector(state.joint_positions, joint_names, 'joint_positions')
     if position_limits is not None:
         lo, hi = position_limits
-        out = np.flatnonzero((q < lo - unit_tol) | (q > hi + unit_tol))
-        for i in out:
+        out = (q < lo - unit_tol) | (q > hi + unit_tol)
+        for i in np.flatnonzero(out) if out.any() else ():
             warnings.append(f'joint {joint_names[i]!r} at {q[i]:.4g} rad is outside its '
                             f'limits [{lo[i]:.4g}, {hi[i]:.4g}]')
     quat = _vector(state.base_orientation, 4, 'base_orientation')
-    norm = float(np.linalg.norm(quat))
+    norm = math.sqrt(float(quat @ quat))
     if norm == 0.0:
         raise InputError('base_orientation is a zero quaternion')
     if abs(norm - 1.0) > unit_tol:
         warnings.append(f'base_orientation had norm {norm:.6g}; normalised')
-    quat = quat / norm
+    quat /= norm
     v = a = None
     nj = len(joint_names)
     if state.joint_velocities is not None or state.base_twist is not None:
@@ -124,23 +126,33 @@ def resolve_state(state: RobotState, joint_names: Sequence[str], feet: Sequence[
                                   'joint_accelerations')
     stance = _stance(state.stance, feet)
     dn = np.asarray(default_normal, dtype=float)
-    normals = np.tile(dn / np.linalg.norm(dn), (len(stance), 1))
-    _check_feet(state.normals, feet, 'normals')
-    for k, foot in enumerate(stance):
-        if foot in state.normals:
-            n = _vector(state.normals[foot], 3, f'normals[{foot!r}]')
-            norm = float(np.linalg.norm(n))
-            if norm == 0.0:
-                raise InputError(f'normals[{foot!r}] is the zero vector')
-            if abs(norm - 1.0) > unit_tol:
-                warnings.append(f'normals[{foot!r}] had norm {norm:.6g}; normalised')
-            normals[k] = n / norm
+    normals = np.empty((len(stance), 3))
+    normals[:] = dn / math.sqrt(float(dn @ dn))
+    if state.normals:
+        _check_feet(state.normals, feet, 'normals')
+        for k, foot in enumerate(stance):
+            if foot in state.normals:
+                n = _vector(state.normals[foot], 3, f'normals[{foot!r}]')
+                norm = math.sqrt(float(n @ n))
+                if norm == 0.0:
+                    raise InputError(f'normals[{foot!r}] is the zero vector')
+                if abs(norm - 1.0) > unit_tol:
+                    warnings.append(f'normals[{foot!r}] had norm {norm:.6g}; normalised')
+                normals[k] = n / norm
+    elif not isinstance(state.normals, Mapping):
+        _check_feet(state.normals, feet, 'normals')
     mu = default_mu
     if state.friction_coefficient is not None:
         mu = _mu(state.friction_coefficient, 'friction_coefficient')
-    _check_feet(state.friction_coefficients, feet, 'friction_coefficients')
-    mus = np.array([_mu(state.friction_coefficients[f], f'friction_coefficients[{f!r}]')
-                    if f in state.friction_coefficients else mu for f in stance])
+    mus = np.full(len(stance), float(mu))
+    if state.friction_coefficients:
+        _check_feet(state.friction_coefficients, feet, 'friction_coefficients')
+        for k, foot in enumerate(stance):
+            if foot in state.friction_coefficients:
+                mus[k] = _mu(state.friction_coefficients[foot],
+                             f'friction_coefficients[{foot!r}]')
+    elif not isinstance(state.friction_coefficients, Mapping):
+        _check_feet(state.friction_coefficients, feet, 'friction_coefficients')
     return ResolvedState(q, v, a, quat, stance, normals, mus, warnings)
 
 
@@ -148,6 +160,17 @@ def resolve_state(state: RobotState, joint_names: Sequence[str], feet: Sequence[
 
 
 def _joint_vector(values, joint_names: Sequence[str], name: str) -> np.ndarray:
+    if type(values) is dict and len(values) == len(joint_names):
+        # Fast path: every joint present, plain numbers, all finite (else the checks below
+        # name the problem).
+        try:
+            raw = [values[j] for j in joint_names]
+        except KeyError:
+            raw = None
+        if raw is not None and set(map(type, raw)) <= _PLAIN_NUMBERS:
+            out = np.array(raw, dtype=float)
+            if np.isfinite(out).all():
+                return out
     if not isinstance(values, Mapping):
         raise InputError(f'{name} must map joint names to numbers, got {type(values).__name__}')
     known = set(joint_names)
@@ -177,6 +200,10 @@ def _vector(value, n: int, name: str) -> np.ndarray:
     if isinstance(value, (str, bytes, Mapping)) or not hasattr(value, '__len__') \
             or len(value) != n:
         raise InputError(f'{name} must be a list of {n} numbers, got {value!r}')
+    if type(value) in (tuple, list) and set(map(type, value)) <= _PLAIN_NUMBERS:
+        out = np.array(value, dtype=float)
+        if np.isfinite(out).all():
+            return out
     return np.array([_number(x, f'{name}[{i}]') for i, x in enumerate(value)])
 
 

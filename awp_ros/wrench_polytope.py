@@ -21,10 +21,12 @@ import numpy as np
 from scipy.optimize import linprog
 
 from awp_ros.errors import InputError
+from awp_ros.linalg import cross3
 from awp_ros.polytope import Polytope
 from awp_ros.zonotope import zonotope
 
-__all__ = ['actuation_wrench_polytope', 'feasible_wrench_polytope', 'lift', 'lift_points']
+__all__ = ['actuation_wrench_polytope', 'feasible_wrench_polytope', 'lift', 'lift_matrices',
+           'lift_points']
 
 
 def lift(p: np.ndarray) -> np.ndarray:
@@ -36,23 +38,33 @@ def lift(p: np.ndarray) -> np.ndarray:
     :param p: foot position ``(3,)`` [m] relative to the CoM, world axes.
     :return: array ``(6, 3)``.
     """
-    x, y, z = np.asarray(p, dtype=float).reshape(3)
-    return np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0],
-                     [0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return lift_matrices(np.reshape(p, (1, 3)))[0]
+
+
+def lift_matrices(positions: np.ndarray) -> np.ndarray:
+    """Return the lifts ``L_k = [I_3; [p_k]_x]`` of shape (K, 6, 3), eq. (1), batched.
+
+    :param positions: (K, 3) feet relative to the CoM [m], world-aligned axes.
+    """
+    p = np.asarray(positions, dtype=float)
+    K = p.shape[0]
+    L = np.zeros((K, 6, 3))
+    L[:, 0, 0] = L[:, 1, 1] = L[:, 2, 2] = 1.0
+    L[:, 3, 1], L[:, 3, 2] = -p[:, 2], p[:, 1]
+    L[:, 4, 0], L[:, 4, 2] = p[:, 2], -p[:, 0]
+    L[:, 5, 0], L[:, 5, 1] = -p[:, 1], p[:, 0]
+    return L
 
 
 def lift_points(positions: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """Return ``L_k v`` for per-leg 3-vectors, batched: ``(K, ..., 3) -> (K, ..., 6)``.
+    """Return ``L_k v`` for per-leg 3-vectors, batched: ``(K, ..., 3) -> (K, ..., 6)``, eq. (1).
 
     :param positions: ``(K, 3)`` [m]; :param vectors: ``(K, ..., 3)`` (forces [N]).
     """
     P = np.asarray(positions, dtype=float)
     V = np.asarray(vectors, dtype=float)
     P = P.reshape(P.shape[:1] + (1,) * (V.ndim - 2) + (3,))
-    m = np.stack([P[..., 1] * V[..., 2] - P[..., 2] * V[..., 1],
-                  P[..., 2] * V[..., 0] - P[..., 0] * V[..., 2],
-                  P[..., 0] * V[..., 1] - P[..., 1] * V[..., 0]], axis=-1)
-    return np.concatenate([V, m], axis=-1)
+    return np.concatenate([V, cross3(P, V)], axis=-1)
 
 
 def actuation_wrench_polytope(positions: np.ndarray, centers: np.ndarray,
@@ -95,10 +107,10 @@ def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 
     equal, and nothing is projected, when leg polytopes and pyramids are full-dimensional)
     and re-normalised. When the hulls coincide, the intersection has an interior in the hull
     if the AWP centre (a zonotope's) lies strictly inside the CWC or 0 strictly inside the
-    AWP (cheap tests, the usual case); otherwise a Chebyshev-ball LP decides: ``meta['degenerate'] = True`` when
-    the largest inscribed ball has radius <= ``interior_tol`` (touching sets: the reported
-    dimension is then that of the hull, an upper bound), empty when the LP shows the
-    intersection is empty.
+    AWP (cheap tests, the usual case); otherwise a Chebyshev-ball LP decides:
+    ``meta['degenerate'] = True`` when the largest inscribed ball has radius <=
+    ``interior_tol`` (touching sets: the reported dimension is then that of the hull, an
+    upper bound), empty when the LP shows the intersection is empty.
 
     :param awp: the AWP (any Polytope with a complete H-rep).
     :param cwc: the CWC (``b = 0``, a cone).
@@ -178,6 +190,8 @@ def _hull_intersection(awp: Polytope, cwc: Polytope,
     ``basis`` is None when the hulls miss each other; ``same`` when they coincide.
     """
     U1, o1, U2, o2 = awp.hull_basis, awp.hull_origin, cwc.hull_basis, cwc.hull_origin
+    if U1.shape[1] == U1.shape[0] and U2.shape[1] == U2.shape[0]:
+        return o1, U1, True                       # both full-dimensional: the whole space
     scale = max(1.0, float(np.max(np.abs(o1))))
     if U1.shape[1] == U2.shape[1]:
         d = o1 - o2

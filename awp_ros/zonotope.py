@@ -12,13 +12,14 @@ Equations used below:
     (1) every facet of Z is parallel to r - 1 linearly independent generators, so its normal
         is the generalised cross product of such a subset (linalg.subset_normals), both signs;
     (2) the support function of a Minkowski sum is the sum of the supports:
-        h_Z(a) = a . c + sum_j |a . g_j|, the offset of the facet with normal a.
+        h_Z(a) = a . c + sum_j |a . g_j|, the offset of the facet with normal a;
+    (3) a facet is determined by the generators parallel to it (its incidence set, which
+        spans it): subsets with the same set give the same facet pair, kept once (e.g. three
+        generators of one lifted leg plus any two of another).
 
 Every row produced by (1) and (2) is a valid supporting halfspace (b = h_Z(a) whatever a is),
-and the rows of all rank-(r-1) subsets are complete, so the H-rep is exact; duplicate normals
-(from generators sharing a hyperplane, e.g. three generators of one lifted leg plus two of
-another) are removed by :func:`awp_ros.linalg.unique_rows`. Vertices are enumerated only on
-request: a zonotope with m generators in general position has
+and the rows of all rank-(r-1) subsets are complete, so the H-rep is exact. Vertices are
+enumerated only on request: a zonotope with m generators in general position has
 ``2 sum_{i<r} C(m-1, i)`` of them (2048 for 12 generators in R^6).
 
 Units and frames are the caller's (forces [N] in R^3, wrenches [N, N.m] in R^6).
@@ -32,8 +33,8 @@ from itertools import combinations
 import numpy as np
 
 from awp_ros.errors import InputError
-from awp_ros.linalg import (SubsetTree, generic_key, orthonormal_span, subset_normals_t,
-                            subset_tree, unique_rows)
+from awp_ros.linalg import (distinct_columns, orthonormal_span, subset_normals, subset_tree,
+                            SubsetTree)
 from awp_ros.polytope import Polytope
 
 __all__ = ['zonotope', 'zonotope_support']
@@ -41,7 +42,7 @@ __all__ = ['zonotope', 'zonotope_support']
 
 def zonotope(center: np.ndarray, generators: np.ndarray, *, with_vertices: bool = False,
              zero_tol: float = 1e-12, rank_tol: float = 1e-9, span_tol: float = 1e-9,
-             dedupe_tol: float = 1e-10, vertex_tol: float = 1e-9) -> Polytope:
+             incidence_tol: float = 1e-9) -> Polytope:
     """Return the exact H-representation of the zonotope ``c + G [-1, 1]^m``.
 
     .. math:: Z = \\{x : a_i . x \\le a_i . c + \\textstyle\\sum_j |a_i . g_j|\\},
@@ -53,38 +54,52 @@ def zonotope(center: np.ndarray, generators: np.ndarray, *, with_vertices: bool 
     :param zero_tol: generators shorter than ``zero_tol`` times the longest are ignored.
     :param rank_tol: subsets whose unit-scaled volume is at most this are rank-deficient.
     :param span_tol: relative singular-value cut for the affine dimension ``r``.
-    :param dedupe_tol: max-norm distance under which two unit normals are the same.
-    :param vertex_tol: ``|a . g_j| / |g_j|`` below this puts ``g_j`` in the facet ``a``.
+    :param incidence_tol: ``|a . g_j| / |g_j|`` at most this puts ``g_j`` in the facet
+        ``a`` (eq. 3: one row pair per set of such generators; vertices).
     :return: a :class:`Polytope` of dimension ``r`` with unit rows in the hull's direction
         space, ``hull_origin = c``; ``meta['kind'] = 'zonotope'``.
     :raises InputError: on bad shapes or non-finite input.
     """
     c, G = _check(center, generators)
     n = c.shape[0]
-    norms = np.linalg.norm(G, axis=0)
+    norms = np.sqrt(np.einsum('ij,ij->j', G, G))
     top = float(np.max(norms, initial=0.0))
-    G = G[:, norms > zero_tol * top] if top > 0.0 else G[:, :0]
+    keep = norms > zero_tol * top
+    if not np.all(keep):
+        G, norms = G[:, keep], norms[keep]
     U = orthonormal_span(G.T, rtol=span_tol)
     r = U.shape[1]
     meta = {'kind': 'zonotope', 'generators': G.shape[1]}
     if r == 0:
         return Polytope(0, c[None, :].copy(), np.zeros((0, n)), np.zeros(0), c, U, meta)
-    g = U.T @ G
-    a, subsets = _facet_normals(g, rank_tol, dedupe_tol)
-    h = np.sum(np.abs(g.T @ a), axis=0)
-    A1 = (U @ a).T
+    full = r == n
+    if full:                                  # hull coordinates are the ambient ones
+        U = np.eye(n)
+    g = G if full else U.T @ G
+    # Eq. (1): a normal per valid subset (either sign), eq. (3): one per incidence set.
+    subsets, tree = _combinations(G.shape[1], r - 1)
+    subsets = subsets if with_vertices else None
+    a, valid = subset_normals(g / norms, tree, rank_tol=rank_tol, unit=True)  # (k, r)
+    if not np.all(valid):
+        a, subsets = a[valid], subsets if subsets is None else subsets[valid]
+    ag = np.abs(g.T @ a.T)                                       # (m, k): |a . g_j|
+    h = np.sum(ag, axis=0)                                       # eq. (2), minus a . c
+    first = distinct_columns(ag <= incidence_tol * norms[:, None], own=r - 1)
+    if first.shape[0] < a.shape[0]:
+        a, h, subsets = a[first], h[first], subsets if subsets is None else subsets[first]
+    A1 = a if full else a @ U.T
     ac = A1 @ c
-    A = np.vstack([A1, -A1])
+    A = np.concatenate([A1, -A1])
     b = np.concatenate([ac + h, h - ac])
     V = np.zeros((0, n))
     if with_vertices:
-        A_r = np.vstack([a.T, -a.T])
+        A_r = np.concatenate([a, -a])
         in_facet = np.zeros((A_r.shape[0], G.shape[1]), dtype=bool)
         rows = np.arange(subsets.shape[0])[:, None]
         in_facet[rows, subsets] = True
         in_facet[rows + subsets.shape[0], subsets] = True
-        V = c + _vertex_signs(A_r @ g, g, in_facet, vertex_tol, A_r, np.concatenate([h, h])
-                              ) @ G.T
+        V = c + _vertex_signs(A_r @ g, g, in_facet, incidence_tol, A_r,
+                              np.concatenate([h, h])) @ G.T
     return Polytope(r, V, A, b, c, U, meta)
 
 
@@ -113,27 +128,6 @@ def _check(center: np.ndarray, generators: np.ndarray) -> tuple[np.ndarray, np.n
         msg = 'zonotope center and generators must be finite'
         raise InputError(msg)
     return c, G
-
-
-def _facet_normals(g: np.ndarray, rank_tol: float,
-                   dedupe_tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """Return distinct unit facet normals as columns ``(r, k)``, one sign each, eq. (1).
-
-    Also return the generator subsets ``(k, r - 1)`` they were computed from.
-    """
-    r, m = g.shape
-    subsets, tree = _combinations(m, r - 1)
-    a, valid = subset_normals_t(g / np.linalg.norm(g, axis=0), tree, rank_tol=rank_tol,
-                                unit=True)
-    if not np.all(valid):
-        a, subsets = a[:, valid], subsets[valid]
-    # One sign per direction (positive sort key), then drop duplicates.
-    key = generic_key(a.T)
-    a *= np.where(key < 0.0, -1.0, 1.0)
-    keep = unique_rows(a.T, dedupe_tol, key=np.abs(key))
-    if keep.shape[0] < a.shape[1]:
-        a, subsets = a[:, keep], subsets[keep]
-    return a, subsets
 
 
 @lru_cache(maxsize=64)

@@ -397,11 +397,18 @@ def test_add_fws_matches_evaluate_with_fws(hyq):
     a = hyq.evaluate(st)
     b = hyq.evaluate(st, fws=False)
     assert b.fws is None and 'fws' not in b.timings_ms and b.feasible == b.fwp.feasible
+    per_cycle = dict(b.timings_ms)
     hyq.add_fws(b)
     assert b.fws.margin == pytest.approx(a.fws.margin)
     for axis in AXES:
         assert b.fws.directional[axis] == pytest.approx(a.fws.directional[axis])
     assert {'fws', 'fws_directional', 'fws_margin'} <= set(b.timings_ms)
+    # 'total' is the per-cycle evaluation: its stages and glue, never the FWS stages.
+    assert b.timings_ms['total'] == per_cycle['total']
+    stages = ('validate', 'model', 'force_polytopes', 'friction_polytopes', 'awp', 'cwc_fwp',
+              'margins')
+    assert set(per_cycle) == set(stages) | {'total'}
+    assert sum(per_cycle[s] for s in stages) == pytest.approx(per_cycle['total'], rel=1e-9)
 
 
 def test_evaluator_accepts_a_config_name_or_object():

@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from awp_ros.errors import InputError
-from awp_ros.linalg import hyperplane_normals, subset_normals, unique_rows
+from awp_ros.linalg import distinct_columns, hyperplane_normals, subset_normals
 from awp_ros.zonotope import zonotope, zonotope_support
 
 
@@ -160,10 +160,19 @@ def test_subset_normals_match_hyperplane_normals_in_any_order():
     np.testing.assert_allclose(n1, n2, atol=1e-13)
 
 
-def test_unique_rows_drops_only_duplicates():
+def test_distinct_columns_keeps_the_first_of_each_column_pattern():
     rng = np.random.default_rng(12)
-    A = rng.normal(size=(20, 6))
-    B = np.vstack([A, A[[3, 7, 7]] + 1e-13, A[:2] + 1e-6])
-    keep = unique_rows(B, 1e-10)
-    assert keep.shape[0] == 22
-    assert np.unique(np.round(B[keep], 9), axis=0).shape[0] == 22
+    for n in (16, 70):                          # exact float keys, then row-wise compare
+        M = rng.random((n, 20)) < 0.5
+        cols = np.hstack([M, M[:, [3, 7, 7]], M[:, :2]])
+        first = distinct_columns(cols)
+        assert first.tolist() == list(range(20))
+        brute = [j for j in range(cols.shape[1])
+                 if not any(np.array_equal(cols[:, i], cols[:, j]) for i in range(j))]
+        assert first.tolist() == brute
+    # Columns with exactly `own` entries are distinct by the caller's promise (not compared).
+    cols = np.zeros((6, 7), dtype=bool)
+    for j, s in enumerate([(0, 1), (0, 2), (0, 1, 2), (1, 2), (0, 1, 2), (3, 4), (0, 1, 2)]):
+        cols[list(s), j] = True
+    assert distinct_columns(cols, own=2).tolist() == [0, 1, 2, 3, 5]
+    assert distinct_columns(cols).tolist() == [0, 1, 2, 3, 5]
