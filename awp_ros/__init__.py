@@ -1,8 +1,12 @@
 """awp_ros: actuation-consistent and feasible wrench polytopes of legged robots.
 
-The core (every module but ``node``, ``pipeline``, ``conversions``, ``markers``,
-``diagnostics``, ``replay*``, ``bag_io`` and ``demo``) is ROS-free: it needs numpy, scipy and
-Pinocchio only. Typical use::
+The core is ROS-free (numpy, scipy, Pinocchio): robot_config, robot_model, state,
+force_polytope, friction_polytope, zonotope, contact_wrench_cone, wrench_polytope,
+feasible_wrench_set (with sum_facets, face_lattice, exterior, fws_queries), margin, linalg,
+polytope, evaluator, result, and the awp_eval / awp_bench front ends. The ROS side (rclpy,
+generated messages, rosbags) is the node (node, node_params, pipeline, pipeline_params, cycle,
+input_buffer, conversions, markers, diagnostics), the bag tools (bag_*, replay*, gait_bag,
+live_recorder, demo) and the soak test (soak*, probe). Typical use of the core::
 
     from awp_ros import FeasibilityEvaluator
     evaluator = FeasibilityEvaluator('hyq')
