@@ -191,20 +191,16 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
     rh = lifted if r == 6 else lifted @ U                               # (K N, r)
     subsets, tree = _candidates(K, sides, r, tuple(bool(m == 0.0) for m in mu))
     a = subset_cross_products(rh.T, tree, unit=True)           # (m, r), |a| = volume
-    # Side test, first with the absolute tolerance (|a| <= 1: a superset), then exactly on
-    # the few that pass, with the tolerance scaled by the volume. Reduce along the long axis
-    # (numpy is slow along a short inner one).
-    s = np.matmul(rh, a.T, out=workspace('cwc_sides', (rh.shape[0], a.shape[0])))
-    smax, smin = np.max(s, axis=0), np.min(s, axis=0)
-    cand = np.flatnonzero((smax <= side_tol) | (smin >= -side_tol))
-    a, smax, smin = a[cand], smax[cand], smin[cand]
     vol = np.sqrt(np.square(a) @ np.ones(r))
+    # Side test of the unit normal a / |a|, done on a with the tolerance scaled by the
+    # volume. Reduce along the long axis (numpy is slow along a short inner one).
+    s = np.matmul(rh, a.T, out=workspace('cwc_sides', (rh.shape[0], a.shape[0])))
     slack = side_tol * vol
-    below = smax <= slack
-    keep = np.flatnonzero((vol > rank_tol) & (below | (smin >= -slack)))
+    below = np.max(s, axis=0) <= slack
+    keep = np.flatnonzero((below | (np.min(s, axis=0) >= -slack)) & (vol > rank_tol))
     A = a[keep] * (np.where(below[keep], 1.0, -1.0) / vol[keep])[:, None]
     # One row per facet: a facet is determined by the rays on it (its incidence).
-    tight = np.abs(s[:, cand[keep]]) <= slack[keep]
+    tight = np.abs(s[:, keep]) <= slack[keep]
     A = A[distinct_columns(tight, own=r - 1)]
     if r < 6:
         A = A @ U.T

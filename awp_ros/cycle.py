@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 from awp_ros_msgs.msg import FeasibilityReport, LegPolytopes, WrenchPolytope
 import numpy as np
 from std_msgs.msg import Header
@@ -80,17 +82,27 @@ class Cycle:
         if not self.markers_due:
             return None
         if 'markers' not in self._cache:
-            if self.result is None:
-                self._cache['markers'] = error_markers(self._marker_header,
-                                                       self.report.status_message,
-                                                       style=self._style)
-            else:
-                R, t = self._marker_frame
-                self._cache['markers'] = build_markers(
-                    self.result, self._marker_header, style=self._style,
-                    fws=self._latest_fws, pyramid_sides=self._sides, rotation=R,
-                    translation=t, status_text=self.report.status_message)
+            function, args, kwargs = self.marker_job()
+            self._cache['markers'] = function(*args, **kwargs)
         return self._cache['markers']
+
+    def marker_job(self) -> tuple:
+        """Return ``(function, args, kwargs)`` building :meth:`markers` (picklable).
+
+        What :class:`awp_ros.marker_worker.MarkerWorker` runs in its process. The wrench
+        sets whose margins only label the markers travel without their polytopes.
+        """
+        if self.result is None:
+            return error_markers, (self._marker_header, self.report.status_message), {
+                'style': self._style}
+        r = self.result
+        slim = replace(r, awp=replace(r.awp, polytope=None),
+                       fws=None if r.fws is None else replace(r.fws, polytope=None))
+        fws = None if self._latest_fws is None else replace(self._latest_fws, polytope=None)
+        R, t = self._marker_frame
+        return build_markers, (slim, self._marker_header), {
+            'style': self._style, 'fws': fws, 'pyramid_sides': self._sides, 'rotation': R,
+            'translation': t, 'status_text': self.report.status_message}
 
     def messages(self) -> dict:
         """Return every output of this message: topic name (``OUTPUTS``) -> message."""

@@ -108,6 +108,7 @@ class NodeDiagnostics:
         self.config_errors: list[str] = []
         self.output_errors = 0
         self.output_errors_period = 0
+        self.markers_skipped = 0
         self.last_output_error = ''
 
     # -- recording (per message) -----------------------------------------------------------
@@ -128,10 +129,13 @@ class NodeDiagnostics:
         A smaller number than the last one means a new publisher (restart) and starts over.
         Assumes one publisher per input topic (several interleaved publishers show gaps).
 
-        :param seq: ``publication_sequence_number`` of the message info (None: unknown).
+        :param seq: ``publication_sequence_number`` of the message info (None: unknown; the
+            next known number then starts over, as a gap across it cannot be told from
+            the unknown message).
         """
         c = self.inputs[topic]
         if seq is None:
+            c.last_seq = None
             return 0
         missing = 0
         if c.last_seq is not None and seq > c.last_seq + 1:
@@ -246,6 +250,8 @@ class NodeDiagnostics:
                    KeyValue(key='robot model error', value=self.model_error),
                    KeyValue(key='rejected parameters', value='; '.join(self.config_errors)),
                    KeyValue(key='output errors (total)', value=str(self.output_errors)),
+                   KeyValue(key='markers skipped, worker busy (total)',
+                            value=str(self.markers_skipped)),
                    KeyValue(key='last output error', value=self.last_output_error)]
         period = self.reports_period
         bad = int(period[2:].sum())

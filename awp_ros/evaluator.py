@@ -9,7 +9,10 @@ whole-robot CoM; SI units). Stage names are the keys of ``timings_ms`` [ms]:
    gravito-inertial wrench ``w = [m (c'' - g); L']`` (quasi-static ``[0, 0, m g, 0, 0, 0]``).
 3. ``force_polytopes``: per stance leg :math:`\\{f : \\tau_{min} \\le b - J^T f \\le
    \\tau_{max}\\}` (closed-form parallelepipeds for 3-joint legs, batched).
-4. ``friction_polytopes``: each ∩ its friction pyramid ∩ ``n . f >= 0``.
+4. ``friction_polytopes``: each ∩ its friction pyramid ∩ ``n . f >= 0``, computed on first
+   use (:attr:`LegResult.friction_polytope`: the FWS, leg messages, markers); this stage only
+   proves each non-empty (a force-polytope vertex strictly inside the pyramid) or, when that
+   test fails, computes them to warn about a leg that cannot push.
 5. ``awp``: :math:`\\sum_k L_k \\mathcal F_k`, a zonotope with 3K generators when every leg
    is a parallelepiped (or a singular leg's flat image), else the exact Minkowski sum.
 6. ``cwc_fwp``: the contact wrench cone and FWP = AWP ∩ CWC (the seed's FWP).
@@ -18,7 +21,8 @@ whole-robot CoM; SI units). Stage names are the keys of ``timings_ms`` [ms]:
 ``total`` is the wall time of the whole per-cycle evaluation, the seven stages back to back:
 what ``evaluate(state, fws=False)`` costs. The feasible wrench set
 :math:`\\sum_k L_k \\mathcal F_{\\mu,k}` is timed apart, as it may run at a lower rate
-(:meth:`FeasibilityEvaluator.add_fws`): ``fws`` (its exact H-rep), ``fws_directional`` (how
+(:meth:`FeasibilityEvaluator.add_fws`): ``fws`` (its exact H-rep, including the
+friction-bounded polytopes when not yet computed), ``fws_directional`` (how
 far ``w`` can move along each wrench axis inside it) and ``fws_margin`` (its signed Euclidean
 margin). FWS ⊆ FWP ⊆ AWP: the FWP only asks that *some* force distribution respects the
 torques and *some* (possibly other) distribution respects friction; the FWS asks for one
@@ -29,6 +33,7 @@ The result classes live in :mod:`awp_ros.result` and are re-exported here.
 
 from __future__ import annotations
 
+from functools import partial
 import time
 
 import numpy as np
@@ -37,7 +42,7 @@ from awp_ros.contact_wrench_cone import contact_wrench_cone
 from awp_ros.errors import ConfigError
 from awp_ros.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
 from awp_ros.force_polytope import force_polytope, parallelepipeds
-from awp_ros.friction_polytope import friction_polytopes, friction_rows
+from awp_ros.friction_polytope import FrictionPolytopes, friction_rows, vertex_inside
 from awp_ros.margin import directional_margins, polytope_margin
 from awp_ros.polytope import Polytope
 from awp_ros.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
@@ -118,12 +123,14 @@ class FeasibilityEvaluator:
         t2 = clock()
         forces, stacked = self._force_polytopes(s.stance, kin.J, kin.bias, warnings)
         t3 = clock()
-        frictions = friction_polytopes(forces, self._friction_rows(s.normals, s.mus)) \
-            if forces else []
-        for foot, Q in zip(s.stance, frictions):
-            if Q.is_empty:
-                warnings.append(f'leg {foot!r} cannot push on the ground within its torque '
-                                'limits (empty friction-bounded polytope)')
+        frictions: FrictionPolytopes | list = []
+        if forces:
+            rows = self._friction_rows(s.normals, s.mus)
+            frictions = FrictionPolytopes(forces, rows)
+            for k in np.flatnonzero(~vertex_inside(forces, rows)).tolist():
+                if frictions[k].is_empty:
+                    warnings.append(f'leg {s.stance[k]!r} cannot push on the ground within '
+                                    'its torque limits (empty friction-bounded polytope)')
         t4 = clock()
         if s.stance:
             awp = actuation_wrench_polytope(p, *stacked) if stacked is not None else \
@@ -141,7 +148,7 @@ class FeasibilityEvaluator:
         fwp_r = WrenchSetResult.from_margin('fwp', fwp, polytope_margin(
             fwp, w, feasibility_tol=tol))
         legs = {foot: LegResult(foot, p[k], s.normals[k], float(s.mus[k]), forces[k],
-                                frictions[k], forces[k].meta['singular'],
+                                partial(frictions.__getitem__, k), forces[k].meta['singular'],
                                 forces[k].meta['near_singular'])
                 for k, foot in enumerate(s.stance)}
         t7 = clock()

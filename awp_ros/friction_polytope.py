@@ -33,7 +33,8 @@ from awp_ros.force_polytope import polytope_from_halfspaces, triples
 from awp_ros.linalg import cross3
 from awp_ros.polytope import Polytope
 
-__all__ = ['friction_halfspaces', 'friction_polytope', 'friction_polytopes', 'friction_rows']
+__all__ = ['FrictionPolytopes', 'friction_halfspaces', 'friction_polytope', 'friction_polytopes',
+           'friction_rows', 'vertex_inside']
 
 
 def friction_halfspaces(normal: np.ndarray, mu: float, sides: int) -> np.ndarray:
@@ -116,6 +117,57 @@ def friction_polytopes(forces: Sequence[Polytope], rows: np.ndarray, *, tol: flo
         if out[k] is None:
             out[k] = _intersect(forces[k], rows[k], tol)
     return out
+
+
+def vertex_inside(forces: Sequence[Polytope], rows: np.ndarray, *,
+                  margin: float = 1e-6) -> np.ndarray:
+    """Return, per leg, whether a vertex of its force polytope is strictly in its pyramid.
+
+    .. math:: \\exists v \\in \\mathrm{vert}(\\mathcal F_k) : a \\cdot v < -\\epsilon
+              \\; \\forall a \\in \\mathrm{rows}_k
+
+    A cheap proof that the friction-bounded polytope (1) is not empty (the vertex is in
+    it), so that the per-cycle emptiness warning does not need (1) itself; False does not
+    prove emptiness (the pyramid may cut a face without containing a vertex): compute (1).
+
+    :param forces: K force polytopes in R^3 [N] with their vertices.
+    :param rows: (K, N + 1, 3) unit outward rows of each leg's pyramid (:func:`friction_rows`).
+    :param margin: the distance [N] inside every pyramid plane a vertex must have.
+    :return: boolean array (K,).
+    """
+    K = len(forces)
+    if K and all(F.vertices.shape == forces[0].vertices.shape for F in forces):
+        V = np.array([F.vertices for F in forces])                     # (K, n_v, 3)
+        s = V @ rows.transpose(0, 2, 1)                                 # (K, n_v, N + 1)
+        return np.any(np.all(s < -margin, axis=2), axis=1)
+    return np.array([bool(np.any(np.all(F.vertices @ rows[k].T < -margin, axis=1)))
+                     for k, F in enumerate(forces)], dtype=bool)
+
+
+class FrictionPolytopes:
+    """The friction-bounded polytopes (1) of K legs, computed together on first use.
+
+    ``frictions[k]`` is :func:`friction_polytopes` ``(forces, rows)[k]``; the batch runs once,
+    when a leg's polytope is first asked for (the FWS, leg messages, markers), so a control
+    cycle that needs none of them does not pay for it.
+    """
+
+    def __init__(self, forces: Sequence[Polytope], rows: np.ndarray, **tols: float) -> None:
+        self._forces, self._rows, self._tols = list(forces), rows, tols
+        self._out: list[Polytope] | None = None
+
+    @property
+    def computed(self) -> bool:
+        """Return whether the polytopes have been computed."""
+        return self._out is not None
+
+    def __len__(self) -> int:
+        return len(self._forces)
+
+    def __getitem__(self, k: int) -> Polytope:
+        if self._out is None:
+            self._out = friction_polytopes(self._forces, self._rows, **self._tols)
+        return self._out[k]
 
 
 def _intersect(force: Polytope, rows: np.ndarray, tol: float) -> Polytope:

@@ -15,7 +15,9 @@ Normals of hyperplanes spanned by d - 1 vectors of R^d are generalised cross pro
         W (n_k, C(d, k)) of the k-prefixes times B = T V (C(d, k), C(d, k + 1) N), T the
         fixed table of eq. (2), give every prefix extended by every vector; the children are
         gathered from it (a few times more products than needed, but in BLAS: numpy's
-        call overhead, not the arithmetic, is what costs at these sizes).
+        call overhead and the products, not the gather, are what cost at these sizes);
+    (5) only the vectors lo..hi-1 that end some (k+1)-prefix enter that product (for the
+        lexicographic s-subsets of m vectors, m - s + 1 of them at every level).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import threading
 from typing import NamedTuple
 
 import numpy as np
+from scipy.linalg.lapack import dpotrf as _dpotrf
 
 from awp_ros.exterior import hodge_normal, wedge_rows, wedge_table
 
@@ -51,8 +54,9 @@ class SubsetTree(NamedTuple):
     previous level (``None`` at level 1). ``leaf`` maps each input row to its full prefix,
     ``None`` when that map is the identity (rows distinct and sorted). ``size`` is the
     number of input rows, ``width`` the subset size, ``vectors`` one more than the largest
-    index. ``gathers[k - 1]`` picks level ``k + 1`` out of the products of eq. (4): the flat
-    positions ``(parent * C + c) * vectors + last`` of its ``C`` components ``c``.
+    index. ``windows[k - 1] = (lo, hi)`` is the range of the last indices of level ``k + 1``
+    (eq. 5), and ``gathers[k - 1]`` picks that level out of the products of eq. (4): the flat
+    positions ``(parent * C + c) * (hi - lo) + last - lo`` of its ``C`` components ``c``.
     """
 
     levels: tuple[tuple[np.ndarray, np.ndarray | None], ...]
@@ -61,6 +65,7 @@ class SubsetTree(NamedTuple):
     width: int
     vectors: int
     gathers: tuple[np.ndarray, ...]
+    windows: tuple[tuple[int, int], ...] = ()
 
 
 def subset_tree(subsets: np.ndarray) -> SubsetTree:
@@ -87,12 +92,14 @@ def subset_tree(subsets: np.ndarray) -> SubsetTree:
     if k and leaf.shape[0] == levels[-1][0].shape[0] and np.array_equal(leaf, np.arange(m)):
         leaf = None
     n_vec = int(subsets.max(initial=-1)) + 1
-    gathers = []
+    gathers, windows = [], []
     for j, (last, parent) in enumerate(levels[1:], start=2):
         width = comb(k + 1, j) if j < k else k + 1
-        pos = (parent[:, None] * width + np.arange(width)) * n_vec + last[:, None]
+        lo, hi = int(last.min()), int(last.max()) + 1
+        pos = (parent[:, None] * width + np.arange(width)) * (hi - lo) + (last - lo)[:, None]
         gathers.append(pos)
-    return SubsetTree(tuple(levels), leaf, m, k, n_vec, tuple(gathers))
+        windows.append((lo, hi))
+    return SubsetTree(tuple(levels), leaf, m, k, n_vec, tuple(gathers), tuple(windows))
 
 
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -207,9 +214,11 @@ def subset_cross_products(V: np.ndarray, subsets: np.ndarray | SubsetTree, *,
         norms = np.sqrt(np.einsum('dn,dn->n', V, V))
         V = V / np.where(norms > 0.0, norms, 1.0)
     W = V.T[tree.levels[0][0]]
-    for k, pos in enumerate(tree.gathers, start=1):
-        # Eq. (4): all products of the level's minors with every vector, then the children.
-        B = (_wedge_step(d, k) @ V).reshape(W.shape[1], -1)
+    windows = tree.windows or ((0, tree.vectors),) * len(tree.gathers)
+    for k, (pos, (lo, hi)) in enumerate(zip(tree.gathers, windows), start=1):
+        # Eq. (4-5): all products of the level's minors with the vectors that end a child
+        # at this level, then the children.
+        B = (_wedge_step(d, k) @ V[:, lo:hi]).reshape(W.shape[1], -1)
         Y = np.matmul(W, B, out=workspace('minors', (W.shape[0], B.shape[1])))
         W = Y.take(pos)
     if d == 2:
@@ -220,22 +229,43 @@ def subset_cross_products(V: np.ndarray, subsets: np.ndarray | SubsetTree, *,
 def orthonormal_span(V: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
     """Return an orthonormal basis (columns) of the span of the rows of ``V``.
 
+    Full rank is first certified without an SVD, from the Cholesky factor ``R`` of the
+    Gram matrix ``G = V^T V`` (eigenvalues ``s_i^2``, the squared singular values of V):
+
+    .. math:: \\frac{s_{min}^2}{s_{max}^2} \\ge \\frac{\\lambda_{min}(G)}{\\operatorname{tr} G}
+              \\ge \\frac{\\det G}{(\\operatorname{tr} G)^n}
+              = \\frac{\\prod_i R_{ii}^2}{(\\operatorname{tr} G)^n}
+
+    (``lambda_max <= tr G`` and ``det G <= lambda_min lambda_max^(n-1)``). When the right
+    side exceeds ``max(rtol^2, _GRAM_CERTIFY)`` every singular value is above ``rtol`` times
+    the largest, so the rank is n, exactly what the SVD test would find; the floor
+    ``_GRAM_CERTIFY`` keeps the certificate to well-conditioned ``G``, whose Cholesky
+    factor is accurate. Otherwise (flat or ill-conditioned sets) the SVD decides.
+
     :param V: array of shape ``(k, n)``.
     :param rtol: singular values below ``rtol`` times the largest are dropped.
     :return: array of shape ``(n, r)`` with ``r`` the numerical rank (the identity when
         ``r = n``).
     """
     V = np.asarray(V, dtype=float)
-    n = V.shape[1]
-    if V.shape[0] == 0:
+    k, n = V.shape
+    if k == 0:
         return np.zeros((n, 0))
-    s = np.linalg.svd(V, compute_uv=False)
+    if k >= n:
+        G = V.T @ V
+        trace = float(G.trace())
+        R, info = _dpotrf(G)
+        if info == 0 and trace > 0.0:        # det G / (tr G)^n, without over/underflow
+            ratio = math.prod([x * x / trace for x in R.diagonal().tolist()])
+            if ratio > max(rtol * rtol, _GRAM_CERTIFY):
+                return np.eye(n)
+    _, s, vt = np.linalg.svd(V, full_matrices=False)
     if s.size == 0 or s[0] == 0.0:
         return np.zeros((n, 0))
     r = int(np.sum(s > rtol * s[0]))
     if r == n:
         return np.eye(n)
-    return np.linalg.svd(V, full_matrices=False)[2][:r].T
+    return vt[:r].T
 
 
 def distinct_columns(mask: np.ndarray, own: int = 0) -> np.ndarray:
@@ -270,6 +300,7 @@ def distinct_columns(mask: np.ndarray, own: int = 0) -> np.ndarray:
 
 
 _WORKSPACE = threading.local()
+_GRAM_CERTIFY = 1e-10  # det G / (tr G)^n above this certifies full rank (orthonormal_span)
 _NEXT, _PREV = np.array([1, 2, 0]), np.array([2, 0, 1])
 _LEVI_CIVITA = np.zeros((3, 3, 3))
 _LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0

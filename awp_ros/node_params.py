@@ -59,11 +59,19 @@ NODE_PARAMETER_DOCS = {
     'executor': (_T.STRING, 'single_threaded', "rclpy executor: 'single_threaded' or "
                  "'events' (rclpy.experimental.EventsExecutor)", True),
     'diagnostics_period_s': (_T.DOUBLE, 1.0, 'period of /diagnostics [s]', True),
+    'drain_budget_s': (_T.DOUBLE, 0.02, 'after a joint state, the node takes the next ones '
+                       'straight from the input queues (and waits for them) for up to this '
+                       'long before returning to the rclpy executor (timers, parameter '
+                       'services): ~0.2 ms less per message [s]; 0 = only those queued', True),
     'max_queue_delay_s': (_T.DOUBLE, 0.0, 'load shedding: a joint state that waited longer '
                           'than this in the input queue (the node is slower than its input) '
                           'is answered at once with a STATUS_STALE_INPUT report instead of '
                           'being evaluated, so latency stays bounded and the queue never '
                           'overflows [s]; 0 = evaluate every joint state however late', False),
+    'marker_worker': (_T.BOOL, True, 'build the markers in a worker process (off the '
+                      'joint-state loop; ~3 ms each); a marker due while two wait for the '
+                      'worker is skipped and counted in /diagnostics; false = in the node',
+                      True),
     'blas_threads': (_T.INTEGER, 1, 'threads of the BLAS under numpy/scipy in this process '
                      '(threadpoolctl); 1 avoids the stalls of busy-waiting BLAS threads on '
                      'cores shared with DDS and other processes; 0 = leave as is', True),
@@ -92,7 +100,7 @@ class NodeParameters:
         desc = ParameterDescriptor(name=name, description=text, read_only=read_only,
                                    dynamic_typing=dynamic)
         if name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz', 'diagnostics_period_s',
-                    'max_queue_delay_s'):
+                    'max_queue_delay_s', 'drain_budget_s'):
             desc.floating_point_range = [FloatingPointRange(from_value=0.0, to_value=1e6)]
         if name == 'qos_depth':
             desc.integer_range = [IntegerRange(from_value=1, to_value=1_000_000)]

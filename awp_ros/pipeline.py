@@ -20,7 +20,8 @@ the wall clock:
   set is {0}) with a warning;
 - ``awp``, ``fwp``, ``leg_polytopes`` every evaluated cycle; the FWS (H-rep, directional
   and Euclidean margins) when ``fws_rate_hz`` says so by stamp (0 = every cycle) or the
-  stance set changed, the reports carrying the latest FWS with its ``fws_stamp``;
+  stance set changed (which restarts the schedule: the next one comes a period later), the
+  reports carrying the latest FWS with its ``fws_stamp``;
 - ``markers`` throttled to ``marker_rate_hz`` by stamp (0 = never);
 - every output's ``header.stamp`` is the joint state's stamp; wrench data use the frame
   ``wrench_frame_id`` (CoM origin, world-aligned axes), markers ``marker_frame_id`` ('' = the
@@ -215,8 +216,10 @@ class Pipeline:
                 if by_rate or result.stance != self._latest_fws_stance:
                     self.evaluator.add_fws(result)
                     fws_computed = True
-                    if by_rate:
-                        self._last_fws_ns = _advance(self._last_fws_ns, ns, p.fws_rate_hz)
+                    # A stance change restarts the schedule: the FWS is never older than
+                    # one period, and not computed twice within one.
+                    self._last_fws_ns = _advance(self._last_fws_ns, ns, p.fws_rate_hz) \
+                        if by_rate else ns
                     self._latest_fws = result.fws
                     self._latest_fws_stamp = msg.header.stamp
                     self._latest_fws_stance = result.stance

@@ -63,14 +63,20 @@ class Probe:
         """Return a publisher of ``mtype`` on ``topic``."""
         return self.node.create_publisher(mtype, topic, self.qos(depth))
 
-    def subscribe(self, mtype, topic: str, callback=None, depth: int = 1000) -> list:
-        """Subscribe to ``topic``; return the list the messages are appended to."""
+    def subscribe(self, mtype, topic: str, callback=None, depth: int = 1000, *,
+                  raw: bool = False) -> list:
+        """Subscribe to ``topic``; return the list the messages are appended to.
+
+        :param raw: receive the serialized bytes (no deserialization: a consumer that only
+            counts, or stores, big messages).
+        """
         got: list = []
 
         def store(msg) -> None:
             with self.lock:
                 got.append(msg)
-        self.node.create_subscription(mtype, topic, callback or store, self.qos(depth))
+        self.node.create_subscription(mtype, topic, callback or store, self.qos(depth),
+                                      raw=raw)
         return got
 
     def close(self) -> None:

@@ -8,6 +8,7 @@ measured orientation); forces [N], moments [N.m], positions [m]. See
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 import math
 
@@ -28,7 +29,9 @@ class LegResult:
 
     ``position``: foot relative to the CoM [m]; ``normal``: unit contact normal;
     ``singular``: J rank-deficient, the force polytope is the seed's pseudo-inverse image;
-    ``near_singular``: exact, but J is badly conditioned.
+    ``near_singular``: exact, but J is badly conditioned; ``friction``: the
+    friction-bounded polytope, or a callable returning it, called on the first access to
+    :attr:`friction_polytope` (it is then replaced by its value).
     """
 
     foot: str
@@ -36,9 +39,16 @@ class LegResult:
     normal: np.ndarray
     friction_coefficient: float
     force_polytope: Polytope
-    friction_polytope: Polytope
+    friction: Polytope | Callable[[], Polytope]
     singular: bool
     near_singular: bool
+
+    @property
+    def friction_polytope(self) -> Polytope:
+        """Return the friction-bounded force polytope [N] (computed on first use)."""
+        if callable(self.friction):
+            self.friction = self.friction()
+        return self.friction
 
     def to_dict(self) -> dict:
         """Return the leg as JSON-ready builtins."""

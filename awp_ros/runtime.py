@@ -1,12 +1,15 @@
 """Process-wide tuning for the per-cycle hot path, called once by each executable's main().
 
-Two settings matter for a loop that evaluates small numpy problems at 1 kHz:
+Three settings matter for a loop that evaluates small numpy problems at 1 kHz:
 
 - BLAS threads: the products here are small, and a second OpenBLAS thread on a 2-core
   machine shared with DDS threads costs more than it gains (measured 2x slower for the FWS).
 - glibc's allocator: numpy temporaries above the mmap threshold (128 kB by default) are
   returned to the kernel when freed and come back as fresh zeroed pages the next cycle, which
   costs as much as the arithmetic. Raising the trim and mmap thresholds keeps them in the heap.
+- the cyclic garbage collector: every full collection traverses every tracked object, most of
+  them created at startup (Pinocchio model, rclpy, numpy, message classes) and alive for
+  good; :func:`freeze_startup_objects` moves them out of its sight once the process is set up.
 
 Library code never calls this: it changes the whole process.
 """
@@ -15,8 +18,9 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+import gc
 
-__all__ = ['tune_process']
+__all__ = ['freeze_startup_objects', 'keep_freed_memory', 'tune_process']
 
 _M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
@@ -30,6 +34,21 @@ def tune_process(blas_threads: int = 1, heap_bytes: int = 64 << 20) -> None:
         pass
     else:
         threadpool_limits(blas_threads, user_api='blas')
+    keep_freed_memory(heap_bytes)
+
+
+def freeze_startup_objects() -> None:
+    """Collect once, then exclude every object alive now from later collections (gc.freeze).
+
+    Call when the process is set up (model built, node created): a full collection then
+    only traverses what the loop created, not the hundreds of thousands of startup objects.
+    """
+    gc.collect()
+    gc.freeze()
+
+
+def keep_freed_memory(heap_bytes: int = 64 << 20) -> None:
+    """Keep up to ``heap_bytes`` [B] of freed memory in the heap (glibc ``mallopt``)."""
     name = ctypes.util.find_library('c')
     if name is None:
         return

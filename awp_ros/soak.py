@@ -17,7 +17,9 @@ Three processes on one ROS domain (``ROS_DOMAIN_ID``; discovery kept on this mac
    sent to a file;
 3. this process: subscribes to ``<ns>/awp_node/report`` and ``/diagnostics`` and samples
    the node's CPU time and RSS from ``/proc/<pid>/stat`` and ``/proc/<pid>/status`` every
-   ``--sample-period`` seconds.
+   ``--sample-period`` seconds. With ``--subscribe markers fwp ...`` it also subscribes to
+   those outputs of the node (``~/<name>``, as serialized bytes, counted), like RViz or a
+   planner would: the node only builds an output that has a subscriber.
 
 Measured: joint states sent and their rate, reports received, **missing** (a stamp sent
 without a report), **duplicates**, unexpected stamps, the report statuses, the latency
@@ -56,13 +58,24 @@ __all__ = ['Probe', 'ProcessMonitor', 'SoakResult', 'drive', 'driver_command', '
            'wait_until']
 
 
+def _output_types() -> dict:
+    """Return the message type of each output a soak may subscribe to."""
+    from awp_ros_msgs.msg import LegPolytopes, WrenchPolytope
+    from visualization_msgs.msg import MarkerArray
+    return {'awp': WrenchPolytope, 'fwp': WrenchPolytope, 'fws': WrenchPolytope,
+            'leg_polytopes': LegPolytopes, 'markers': MarkerArray}
+
+
+OUTPUT_TYPES = _output_types()
+
+
 def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
              warmup_s: float | None = None, qos_depth: int | None = None,
              namespace: str = '/soak', env: dict[str, str] | None = None,
              contacts_rate_hz: float = 100.0, sample_period_s: float = 1.0,
              drain_timeout_s: float | None = None, stall_timeout_s: float = 20.0,
-             params: dict | None = None, timeline_step_s: float | None = None
-             ) -> SoakResult:
+             params: dict | None = None, timeline_step_s: float | None = None,
+             subscribe: tuple[str, ...] = ()) -> SoakResult:
     """Run one soak (see the module docstring) and return what it measured.
 
     :param rate_hz: joint-state rate [Hz].
@@ -80,6 +93,9 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     :param params: more node parameters.
     :param timeline_step_s: rows of the table (default duration / 12, at least the
         sample period).
+    :param subscribe: outputs of the node to subscribe to as well (names of
+        :data:`awp_ros.cycle.OUTPUTS` other than ``report``); their counts go to
+        ``result.outputs``.
     """
     from awp_ros_msgs.msg import FeasibilityReport
     from diagnostic_msgs.msg import DiagnosticArray
@@ -112,6 +128,12 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     probe.subscribe(FeasibilityReport, f'{ns}/awp_node/report', on_report,
                     depth=max(qos_depth, n_max + 1000))    # never the bottleneck
     diag = probe.subscribe(DiagnosticArray, '/diagnostics', depth=100)
+    received = {name: [0] for name in subscribe}
+    for name in subscribe:
+        def counter(_msg, n=received[name]) -> None:
+            n[0] += 1
+        probe.subscribe(OUTPUT_TYPES[name], f'{ns}/awp_node/{name}', counter, depth=100,
+                        raw=True)
     monitor = None
     stamps_file = tempfile.NamedTemporaryFile(prefix='awp_soak_', suffix='.npy', delete=False)
     stamps_file.close()
@@ -151,6 +173,7 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     n = min(count[0], stamps.size)
     got, rcv, st = stamps[:n], recv[:n], status[:n]
     result.reports = int(count[0])
+    result.outputs = {name: n[0] for name, n in received.items()}
     uniq = np.unique(got)
     result.duplicates = int(n - uniq.size)
     result.missing = int(np.setdiff1d(sent, uniq).size)
@@ -197,6 +220,9 @@ def main(argv: list[str] | None = None) -> int:
                         help='CPU/RSS sampling period [s]')
     parser.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
                         help='more node parameters, e.g. executor:=events')
+    parser.add_argument('--subscribe', nargs='+', default=[], choices=sorted(OUTPUT_TYPES),
+                        help='also subscribe to these outputs of the node (as RViz or a '
+                        'planner would; the node builds an output only for subscribers)')
     parser.add_argument('--drive', action='store_true', help=argparse.SUPPRESS)
     parser.add_argument('--stamps-out', help=argparse.SUPPRESS)
     parser.add_argument('--depth', type=int, default=100000, help=argparse.SUPPRESS)
@@ -213,7 +239,7 @@ def main(argv: list[str] | None = None) -> int:
     result = run_soak(args.rate, args.duration, robot=args.robot, warmup_s=args.warmup,
                       qos_depth=args.qos_depth, namespace=args.namespace,
                       contacts_rate_hz=args.contacts_rate, sample_period_s=args.sample_period,
-                      params=params)
+                      params=params, subscribe=tuple(args.subscribe))
     print(result.table())
     print(json.dumps(result.to_dict()))
     ok = result.node_alive and result.missing == 0 and result.duplicates == 0

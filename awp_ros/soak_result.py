@@ -43,6 +43,7 @@ class SoakResult:
     driver: dict = field(default_factory=dict)
     timeline: list = field(default_factory=list)
     node_alive: bool = True
+    outputs: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """Return the result as JSON-ready builtins (without the timeline)."""
@@ -81,6 +82,9 @@ class SoakResult:
             f'{self.node_lost_total} lost (DDS events); its compute time p50 '
             f'{self.node_compute_p50_ms} ms',
         ]
+        if self.outputs:
+            lines.append('other outputs received (subscribed with --subscribe): ' + ', '.join(
+                f'{name} {count}' for name, count in self.outputs.items()))
         return '\n'.join(lines)
 
 

@@ -59,3 +59,14 @@ def test_stale_lost_invalid_and_falling_behind_warn():
     assert evaluation.level == DiagnosticStatus.WARN
     assert '1 of 1 reports not evaluated' in evaluation.message and "['x']" in \
         _values(evaluation)['last error']
+
+
+def test_sequence_gaps_count_and_an_unknown_number_starts_over():
+    d = NodeDiagnostics('n', 'hyq', ['joint_states', 'contacts'])
+    assert [d.sequence('joint_states', s) for s in (1, 2, 5, 6)] == [0, 0, 2, 0]
+    # A message without its number (EventsExecutor callbacks) may hide a gap: the next
+    # known number starts over instead of counting the unknown message as missing.
+    assert d.sequence('joint_states', None) == 0
+    assert d.sequence('joint_states', 8) == 0 and d.sequence('joint_states', 10) == 1
+    assert d.sequence('joint_states', 3) == 0            # a new publisher starts over
+    assert d.inputs['joint_states'].gaps == 3

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 import json
 
 import numpy as np
@@ -11,6 +12,7 @@ from scipy.optimize import linprog
 
 from awp_ros.errors import InputError
 from awp_ros.evaluator import AXES, FeasibilityEvaluator
+from awp_ros.friction_polytope import friction_halfspaces, friction_polytope
 from awp_ros.robot_config import load_config, RobotConfig
 from awp_ros.robot_model import resolve_urdf
 from awp_ros.state import RobotState
@@ -446,3 +448,31 @@ def test_legs_with_four_joints_use_the_exact_set_and_minkowski_sum():
         assert res.dimension == 5
         h = wrench_lp(ev, st, name, direction=res.normal)
         assert h == pytest.approx(res.normal @ r.wrench + res.margin, rel=1e-7, abs=1e-6)
+
+
+def test_legs_that_cannot_push_are_warned_and_friction_polytopes_come_on_use(hyq):
+    # HyQ standing: every leg has a vertex inside its pyramid, so the cycle computes no
+    # friction-bounded polytope; asked for, they equal the direct computation.
+    r = hyq.evaluate(hyq.standing_state(), fws=False)
+    assert not [w for w in r.warnings if 'cannot push' in w]
+    assert all(callable(leg.friction) for leg in r.legs.values())
+    for leg in r.legs.values():
+        ref = friction_polytope(leg.force_polytope, leg.normal, leg.friction_coefficient,
+                                hyq.config.pyramid_sides)
+        assert leg.friction_polytope.dimension == ref.dimension == 3
+        assert not callable(leg.friction)
+        np.testing.assert_allclose(np.sort(leg.friction_polytope.vertices, axis=0),
+                                   np.sort(ref.vertices, axis=0), atol=1e-9)
+    # Torque limits of 0.5 N.m cannot hold the legs' own weight within friction: an LP on
+    # the definition finds no force, and every leg is named in a warning.
+    weak = replace(hyq.config, torque_limits={n: (-0.5, 0.5) for n in hyq.model.joint_names})
+    ev = FeasibilityEvaluator(weak)
+    r = ev.evaluate(ev.standing_state(), fws=False)
+    for foot, leg in r.legs.items():
+        F = leg.force_polytope
+        rows = friction_halfspaces(leg.normal, leg.friction_coefficient, 4)
+        lp = linprog(np.zeros(3), A_ub=np.vstack([F.A, rows]),
+                     b_ub=np.concatenate([F.b, np.zeros(rows.shape[0])]),
+                     bounds=[(None, None)] * 3, method='highs')
+        assert lp.status == 2 and leg.friction_polytope.is_empty
+        assert any(f'leg {foot!r} cannot push' in w for w in r.warnings)

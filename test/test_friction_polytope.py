@@ -9,7 +9,7 @@ from scipy.spatial import HalfspaceIntersection
 
 from awp_ros.force_polytope import force_polytope
 from awp_ros.friction_polytope import (friction_halfspaces, friction_polytope, friction_polytopes,
-                                       friction_rows)
+                                       friction_rows, FrictionPolytopes, vertex_inside)
 
 RNG_SEED = 11
 
@@ -180,3 +180,46 @@ def test_frictionless_contact_keeps_the_unilateral_row_in_the_batch():
     assert Q.dimension == 1
     np.testing.assert_allclose(np.sort(Q.vertices[:, 2]), [0.0, (2.0 + 30.0) / 0.3])
     np.testing.assert_allclose(Q.vertices[:, :2], 0.0, atol=1e-9)
+
+
+def feasible_by_lp(F, rows):
+    """Return whether force polytope ∩ {rows . f <= 0} is non-empty, by an LP (HiGHS)."""
+    E, e = F.equalities
+    lp = linprog(np.zeros(3), A_ub=np.vstack([F.A, rows]),
+                 b_ub=np.concatenate([F.b, np.zeros(rows.shape[0])]),
+                 A_eq=E if E.size else None, b_eq=e if E.size else None,
+                 bounds=[(None, None)] * 3, method='highs')
+    return lp.status == 0
+
+
+def test_vertex_inside_proves_non_emptiness_and_the_lazy_batch_is_the_batch():
+    # Legs pushing well, pushing a little, not at all, and sideways: the vertex test may
+    # only say True where an LP finds the friction-bounded set non-empty, and the lazily
+    # computed batch is the eager one.
+    rng = np.random.default_rng(RNG_SEED + 2)
+    J = np.diag([0.5, 0.4, 0.3])
+    forces = [force_polytope(*random_leg(rng)) for _ in range(30)]
+    forces += [force_polytope(J, np.array([0.0, 0.0, bz]), -np.full(3, 30.0),
+                              np.full(3, 30.0)) for bz in (-40.0, -31.0, -29.0, 0.0)]
+    K = len(forces)
+    normals = np.array([0.0, 0.0, 1.0]) + rng.uniform(0.0, 1.5, size=(K, 3)) \
+        * rng.choice([-1.0, 1.0], size=(K, 3))
+    normals[-4:] = [0.0, 0.0, 1.0]
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    mus = rng.uniform(0.2, 1.0, K)
+    mus[-4:] = 1.2                  # the last box's top vertices (+-60, +-75, 100) are inside
+    rows = friction_rows(normals, mus, 4)
+    inside = vertex_inside(forces, rows)
+    lp = np.array([feasible_by_lp(F, rows[k]) for k, F in enumerate(forces)])
+    eager = friction_polytopes(forces, rows)
+    lazy = FrictionPolytopes(forces, rows)
+    assert not lazy.computed and len(lazy) == K
+    for k in range(K):
+        assert lazy[k] is not None and lazy.computed
+        assert lazy[k].dimension == eager[k].dimension
+        assert same_rows(lazy[k].vertices, eager[k].vertices, 1e-9)
+        assert eager[k].is_empty == (not lp[k])
+    assert np.all(lp[inside])                                # True proves non-empty
+    assert inside.any() and (~lp).any()                      # both kinds were drawn
+    assert (lp & ~inside).any()        # cut faces without a vertex inside: the fallback
+    assert inside[-1] and not inside[-4] and not lp[-4]

@@ -119,8 +119,11 @@ def test_throttles_follow_stamps_and_a_stance_change_forces_the_fws(evaluator):
         assert (c.fws() is not None) == c.fws_computed
         assert (c.markers() is not None) == c.markers_due
     assert markers == 30
-    assert fws == 11                                     # 10 by rate + 1 stance change
-    assert len(fws_stamps) == 11
+    # By rate at 0, 100, ..., 500 ms, the stance change at 550 ms, then by rate again a
+    # period after it: 650, ..., 950 ms.
+    assert fws == 11
+    expected = [0, 100, 200, 300, 400, 500, 550, 650, 750, 850, 950]
+    assert sorted(fws_stamps) == [T0 + t * 10**6 for t in expected]
     assert _pipeline(marker_rate_hz=0.0).on_joint_state(_joints(evaluator, T0)).markers() \
         is None
 

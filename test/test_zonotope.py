@@ -9,7 +9,7 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from awp_ros.errors import InputError
-from awp_ros.linalg import distinct_columns, hyperplane_normals, subset_normals
+from awp_ros.linalg import distinct_columns, hyperplane_normals, orthonormal_span, subset_normals
 from awp_ros.zonotope import zonotope, zonotope_support
 
 
@@ -176,3 +176,21 @@ def test_distinct_columns_keeps_the_first_of_each_column_pattern():
         cols[list(s), j] = True
     assert distinct_columns(cols, own=2).tolist() == [0, 1, 2, 3, 5]
     assert distinct_columns(cols).tolist() == [0, 1, 2, 3, 5]
+
+
+@pytest.mark.parametrize('ratio', [1e-12, 1e-10, 1e-8, 1e-6, 1e-3, 1.0])
+@pytest.mark.parametrize('rows', [6, 16])
+def test_orthonormal_span_rank_matches_the_singular_values(ratio, rows):
+    # Singular values 1 .. ratio (the smallest set by hand): the rank is that of the SVD
+    # cut s > 1e-9 s_max, whether the Gram certificate or the SVD decides.
+    rng = np.random.default_rng(int(-np.log10(ratio)) + rows)
+    Q1, _ = np.linalg.qr(rng.normal(size=(rows, 6)))
+    Q2, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+    s = np.array([1.0, 0.7, 0.5, 0.3, 0.2, ratio])
+    V = 1e3 * (Q1 * s) @ Q2.T
+    U = orthonormal_span(V)
+    expected = 6 if ratio > 1e-9 else 5
+    assert U.shape == (6, expected)
+    assert np.allclose(U.T @ U, np.eye(expected), atol=1e-12)
+    if expected < 6:                       # the dropped direction is the smallest one
+        assert np.linalg.norm(U.T @ Q2[:, 5]) < 1e-6
