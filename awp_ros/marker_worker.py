@@ -7,8 +7,9 @@ arguments of :func:`awp_ros.markers.build_markers`, pickled) to a process of its
 (``python -m awp_ros.marker_worker``: a fresh interpreter, no fork of a process running DDS
 threads, nothing of the parent's ``__main__`` re-run), which builds the same MarkerArray and
 returns it serialized, over its stdin and stdout (length-prefixed pickles); a thread of the
-node publishes the bytes as they come (``Publisher.publish`` takes serialized messages). The markers are the same as built
-in-process (same function, same arguments); only their publication comes a few ms later.
+node publishes the bytes as they come (``Publisher.publish`` takes serialized messages). The
+markers are the same as built in-process (same function, same arguments); only their
+publication comes a few ms later.
 
 At most ``max_pending`` jobs wait: a job beyond them is refused (:meth:`submit` returns
 False) and the node counts it as skipped. A failed job is passed to ``on_error`` with its
