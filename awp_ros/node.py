@@ -241,6 +241,7 @@ class AwpNode(NodeParameters, Node):
             return
         if worker is not None:
             self.marker_worker = None
+            worker.close()
             self._output_error('the marker worker process ended; building markers in the '
                                'node from now on')
         self._publish_output(self.pub_markers, 'markers', cycle.markers)

@@ -114,6 +114,7 @@ def run_node(ros_env, monkeypatch):
         proc = subprocess.Popen(cmd, env=ros_env, stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, text=True)
         peer = Peer(ros_env, outputs)
+        peer.proc = proc
         started.append((proc, peer))
         peer.wait_matched()
         return peer
@@ -227,6 +228,50 @@ def test_markers_are_well_formed_and_polytopes_roundtrip(run_node, evaluator):
     peer.wait_for(lambda g: g['/diagnostics'], 5, 'diagnostics')
     names = {s.name for s in peer.got['/diagnostics'][-1].status}
     assert names == {'awp_node: inputs', 'awp_node: evaluation'}
+
+
+def _children(pid: int) -> list[int]:
+    """Return the process ids of the children of ``pid`` (Linux /proc)."""
+    out = []
+    for task in Path(f'/proc/{pid}/task').iterdir():
+        out += [int(c) for c in (task / 'children').read_text().split()]
+    return out
+
+
+def test_markers_keep_coming_when_the_marker_worker_dies(run_node, evaluator):
+    peer = run_node({'markers': MarkerArray, '/diagnostics': DiagnosticArray})
+    q = evaluator.model.standing_q
+
+    def one_second(t0: int) -> None:      # 100 joint states 10 ms apart: 30 markers due
+        for i in range(100):
+            if i % 10 == 0:
+                peer.contacts.publish(_contacts(t0 + i * 10**7, FEET))
+                time.sleep(0.005)
+            peer.js.publish(_joints(evaluator, t0 + i * 10**7, q))
+            time.sleep(0.01)
+
+    t0 = peer.now_ns()
+    one_second(t0)                         # the worker starts up meanwhile (some skipped)
+    peer.wait_for(lambda g: g['markers'], 30, 'markers from the worker')
+    time.sleep(0.5)
+    n = len(peer.got['markers'])
+    one_second(t0 + 10**9)
+    peer.wait_for(lambda g: len(g['markers']) >= n + 28, 30, 'markers from the worker')
+    (worker,) = _children(peer.proc.pid)
+    assert 'awp_ros.marker_worker' in Path(f'/proc/{worker}/cmdline').read_text()
+    os.kill(worker, signal.SIGKILL)
+    time.sleep(0.5)
+    n = len(peer.got['markers'])
+    one_second(t0 + 2 * 10**9)
+    peer.wait_for(lambda g: len(g['markers']) >= n + 28, 30, 'markers built by the node')
+    assert all(any(mk.ns.startswith('force_polytope') for mk in m.markers)
+               for m in peer.got['markers'][n:])            # full marker arrays, evaluated
+
+    def reported(g) -> bool:
+        return any('marker worker process ended' in kv.value for d in g['/diagnostics']
+                   for st in d.status for kv in st.values)
+    peer.wait_for(reported, 10, 'the end of the worker on /diagnostics')
+    assert not _children(peer.proc.pid)                      # reaped
 
 
 def test_invalid_input_and_parameter_changes_are_answered(run_node, evaluator):
