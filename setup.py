@@ -9,11 +9,11 @@ version = '0.1.0'  # the same as in package.xml
 
 # One executable per job. `ros2 run awp_ros <name>` finds them in lib/awp_ros (setup.cfg).
 executables = {
-    'awp_node': 'awp_ros.node:main',
-    'awp_replay': 'awp_ros.replay_cli:main',
-    'awp_eval': 'awp_ros.eval_cli:main',
-    'awp_bench': 'awp_ros.bench_cli:main',
-    'awp_demo': 'awp_ros.demo:main',
+    'awp_node': 'awp_ros.node.node:main',
+    'awp_replay': 'awp_ros.cli.replay:main',
+    'awp_eval': 'awp_ros.cli.eval:main',
+    'awp_bench': 'awp_ros.cli.bench:main',
+    'awp_demo': 'awp_ros.demo.demo:main',
 }
 
 setup(

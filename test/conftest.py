@@ -6,10 +6,14 @@ import itertools
 import os
 from pathlib import Path
 import random
+import sys
 
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
+# The shared test cases (test/cases.py) import as `cases` from every test folder. Test file
+# names are unique across folders (pytest imports them by basename).
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 _domain_ids = itertools.count(random.Random(os.getpid()).randrange(1, 101))
 
 

@@ -1,0 +1,10 @@
+"""The thin command-line programs: argument parsing and main() only.
+
+- :mod:`support`: run_main (errors to exit statuses).
+- :mod:`eval`: awp_eval.
+- :mod:`replay`: awp_replay.
+- :mod:`bench`: awp_bench.
+- :mod:`pipeline_bench`: python -m awp_ros.cli.pipeline_bench.
+"""
+
+__all__ = ['support', 'eval', 'replay', 'bench', 'pipeline_bench']

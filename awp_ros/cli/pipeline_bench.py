@@ -1,0 +1,100 @@
+"""Time the node's pipeline, message by message, over a bag (no DDS): where a joint state goes.
+
+::
+
+    python -m awp_ros.cli.pipeline_bench [BAG] [--robot hyq] [--repeat 2]
+
+Reads the joint states and contacts of ``BAG`` (default: the default bag,
+``config/hyq_gait.mcap``), feeds them to :class:`awp_ros.ros.pipeline.Pipeline` in recorded order
+as ``awp_node`` does (the first pass warms up, the last is timed) and prints, per joint state,
+the mean and median wall time of :meth:`~awp_ros.ros.pipeline.Pipeline.on_joint_state` [ms], the
+mean of each evaluation stage (:data:`awp_ros.evaluation.evaluator.STAGES`) and of the FWS amortised over
+all joint states, the rest (report and input conversion), and the means by number of stance
+legs. Its last line is one JSON object. Output messages other than the report are not built
+(as in a node without subscribers to them).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+import numpy as np
+
+from awp_ros.runtime import tune_process
+
+__all__ = ['main', 'time_pipeline']
+
+
+def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2) -> dict:
+    """Return the timings [ms] of the pipeline over ``bag`` (see the module docstring)."""
+    from awp_ros_msgs.msg import ContactState
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import JointState
+
+    from awp_ros.bags.reader import read_bag
+    from awp_ros.evaluation.evaluator import STAGES
+    from awp_ros.bags.replay import load_parameters, make_pipeline
+
+    pipeline = make_pipeline(load_parameters(robot=robot))
+    types = {'/joint_states': JointState, '/contacts': ContactState}
+    msgs = [(m.topic, deserialize_message(m.data, types[m.topic]))
+            for m in read_bag(bag, topics=list(types))]
+    for _ in range(max(1, repeat)):
+        wall, legs, stages, fws = [], [], {s: [] for s in STAGES}, []
+        for topic, msg in msgs:
+            if topic == '/contacts':
+                pipeline.on_contacts(msg)
+                continue
+            t0 = time.perf_counter()
+            cycle = pipeline.on_joint_state(msg)
+            wall.append(1e3 * (time.perf_counter() - t0))
+            r = cycle.result
+            legs.append(-1 if r is None else len(r.stance))
+            for s in STAGES:
+                stages[s].append(0.0 if r is None else r.timings_ms[s])
+            fws.append(sum(r.timings_ms.get(k, 0.0) for k in ('fws', 'fws_directional',
+                                                              'fws_margin'))
+                       if r is not None and cycle.fws_computed else 0.0)
+    wall_a, legs_a = np.array(wall), np.array(legs)
+    out = {'joint_states': len(wall), 'mean_ms': float(wall_a.mean()),
+           'p50_ms': float(np.median(wall_a)),
+           'fws_computed': int(np.count_nonzero(fws)),
+           'fws_amortised_ms': float(np.mean(fws))}
+    for s, v in stages.items():
+        out[f'{s}_ms'] = float(np.mean(v))
+    out['rest_ms'] = out['mean_ms'] - out['fws_amortised_ms'] - sum(
+        out[f'{s}_ms'] for s in STAGES)
+    out['mean_ms_by_stance_legs'] = {int(k): float(wall_a[legs_a == k].mean())
+                                     for k in np.unique(legs_a)}
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the timing and print it; return the exit status."""
+    from awp_ros.gait.bag import default_bag_path
+    parser = argparse.ArgumentParser(prog='python -m awp_ros.cli.pipeline_bench',
+                                     description=__doc__.split('\n\n')[0])
+    parser.add_argument('bag', nargs='?', default=None,
+                        help='input bag (default: the packaged config/hyq_gait.mcap)')
+    parser.add_argument('--robot', default='hyq', help='robot config (default: hyq)')
+    parser.add_argument('--repeat', type=int, default=2,
+                        help='passes over the bag; the last is timed (default: 2)')
+    args = parser.parse_args(argv)
+    tune_process()
+    out = time_pipeline(args.bag or str(default_bag_path()), args.robot, args.repeat)
+    lines = [f'{out["joint_states"]} joint states: {out["mean_ms"]:.3f} ms mean, '
+             f'{out["p50_ms"]:.3f} ms median per joint state; FWS computed '
+             f'{out["fws_computed"]} times']
+    lines += [f'  {k[:-3]:<20} {v:.4f} ms (mean per joint state)' for k, v in out.items()
+              if k.endswith('_ms') and k not in ('mean_ms', 'p50_ms')]
+    lines += [f'  {k} stance legs: {v:.3f} ms mean'
+              for k, v in out['mean_ms_by_stance_legs'].items()]
+    sys.stdout.write('\n'.join(lines) + '\n' + json.dumps(out) + '\n')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

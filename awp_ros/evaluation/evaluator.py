@@ -1,0 +1,265 @@
+"""The feasibility evaluator: one object per robot, one call per state, one result object.
+
+Pipeline of :meth:`FeasibilityEvaluator.evaluate` (frames: world-aligned axes, origin at the
+whole-robot CoM; SI units). Stage names are the keys of ``timings_ms`` [ms]:
+
+1. ``validate``: the :class:`~awp_ros.robot.state.RobotState` against the model (InputError).
+2. ``model``: Pinocchio update, base at the origin with the measured orientation: bias
+   torques ``rnea(q, v, a)``, LOCAL_WORLD_ALIGNED foot Jacobians, CoM, mass and the
+   gravito-inertial wrench ``w = [m (c'' - g); L']`` (quasi-static ``[0, 0, m g, 0, 0, 0]``).
+3. ``force_polytopes``: per stance leg :math:`\\{f : \\tau_{min} \\le b - J^T f \\le
+   \\tau_{max}\\}` (closed-form parallelepipeds for 3-joint legs, batched).
+4. ``friction_polytopes``: each ∩ its friction pyramid ∩ ``n . f >= 0``, computed on first
+   use (:attr:`LegResult.friction_polytope`: the FWS, leg messages, markers); this stage only
+   proves each non-empty (a force-polytope vertex strictly inside the pyramid) or, when that
+   test fails, computes them to warn about a leg that cannot push.
+5. ``awp``: :math:`\\sum_k L_k \\mathcal F_k`, a zonotope with 3K generators when every leg
+   is a parallelepiped (or a singular leg's flat image), else the exact Minkowski sum.
+6. ``cwc_fwp``: the contact wrench cone and FWP = AWP ∩ CWC (the seed's FWP).
+7. ``margins``: signed Euclidean margins and witnesses of ``w`` for AWP and FWP.
+
+``total`` is the wall time of the whole per-cycle evaluation, the seven stages back to back:
+what ``evaluate(state, fws=False)`` costs. The feasible wrench set
+:math:`\\sum_k L_k \\mathcal F_{\\mu,k}` is timed apart, as it may run at a lower rate
+(:meth:`FeasibilityEvaluator.add_fws`): ``fws`` (its exact H-rep, including the
+friction-bounded polytopes when not yet computed), ``fws_directional`` (how
+far ``w`` can move along each wrench axis inside it) and ``fws_margin`` (its signed Euclidean
+margin). FWS ⊆ FWP ⊆ AWP: the FWP only asks that *some* force distribution respects the
+torques and *some* (possibly other) distribution respects friction; the FWS asks for one
+distribution that respects both, per leg.
+
+The result classes live in :mod:`awp_ros.evaluation.result` and are re-exported here.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+import time
+
+import numpy as np
+
+from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone
+from awp_ros.errors import ConfigError
+from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
+from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
+from awp_ros.wrench.friction_polytope import FrictionPolytopes, friction_rows, vertex_inside
+from awp_ros.geometry.margin import directional_margins, polytope_margin
+from awp_ros.geometry.polytope import Polytope
+from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
+from awp_ros.robot.config import load_config, RobotConfig
+from awp_ros.robot.model import RobotModel
+from awp_ros.robot.state import resolve_state, RobotState
+from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope, feasible_wrench_polytope
+
+__all__ = ['FeasibilityEvaluator', 'STAGES']
+
+#: The per-cycle stages of :meth:`FeasibilityEvaluator.evaluate`, in order.
+STAGES = ('validate', 'model', 'force_polytopes', 'friction_polytopes', 'awp', 'cwc_fwp',
+          'margins')
+
+
+class FeasibilityEvaluator:
+    """Compute force polytopes, AWP, FWP, FWS and margins of a robot, one state at a time.
+
+    :param config: a :class:`RobotConfig`, or a config name / YAML path for
+        :func:`~awp_ros.robot.config.load_config`.
+    :param singular_rtol: a leg whose Jacobian has smallest / largest singular value below
+        this is singular (pseudo-inverse image, warning).
+    :param near_singular_rtol: below this ratio a leg is flagged near-singular (warning).
+    :param feasibility_tol: tolerance of ``feasible`` on margins and hull residuals
+        [N, N.m].
+    :raises ConfigError: bad config; :raises ModelError: unusable URDF.
+
+    Not thread-safe: the evaluator owns one Pinocchio ``Data`` and reuses its buffers; use
+    one evaluator per thread.
+    """
+
+    def __init__(self, config: RobotConfig | str = 'hyq', *, singular_rtol: float = 1e-9,
+                 near_singular_rtol: float = 1e-2, feasibility_tol: float = 1e-6) -> None:
+        self.config = config if isinstance(config, RobotConfig) else load_config(config)
+        self.model = RobotModel(self.config)
+        self.singular_rtol = singular_rtol
+        self.near_singular_rtol = near_singular_rtol
+        self.feasibility_tol = feasibility_tol
+        legs = self.model.legs
+        self._three_joint = all(len(leg.joints) == 3 for leg in legs.values())
+        self._tau_min = {f: leg.tau_min for f, leg in legs.items()}
+        self._tau_max = {f: leg.tau_max for f, leg in legs.items()}
+        self._rows_cache: tuple | None = None
+        self._limit_cache: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray]] = {}
+
+    @property
+    def feet(self) -> tuple[str, ...]:
+        """Return the config's feet (contact frames)."""
+        return self.config.feet
+
+    def standing_state(self, **kw) -> RobotState:
+        """Return a :class:`RobotState` at the config's standing posture (kw override)."""
+        if self.model.standing_q is None:
+            raise ConfigError(f'robot {self.config.robot_name!r} has no standing_posture')
+        joints = dict(zip(self.model.joint_names, self.model.standing_q.tolist()))
+        return RobotState(joint_positions=joints, **kw)
+
+    def evaluate(self, state: RobotState, *, fws: bool = True) -> FeasibilityResult:
+        """Evaluate one state (see the module docstring for the stages).
+
+        :param state: the robot state.
+        :param fws: also compute the FWS, its directional margins and Euclidean margin
+            (:meth:`add_fws`).
+        :return: the :class:`FeasibilityResult`.
+        :raises InputError: invalid state (the message names the bad value).
+        """
+        clock = time.perf_counter
+        t0 = clock()
+        cfg, model = self.config, self.model
+        s = resolve_state(state, model.joint_names, cfg.feet, default_normal=cfg.unit_normal,
+                          default_mu=cfg.friction_coefficient,
+                          position_limits=model.position_limits)
+        warnings = s.warnings
+        t1 = clock()
+        kin = model.kinematics(s.q, s.stance, quaternion=s.quaternion, v=s.v, a=s.a)
+        w, p = kin.wrench, kin.p_foot__com
+        t2 = clock()
+        forces, stacked = self._force_polytopes(s.stance, kin.J, kin.bias, warnings)
+        t3 = clock()
+        frictions: FrictionPolytopes | list = []
+        if forces:
+            rows = self._friction_rows(s.normals, s.mus)
+            frictions = FrictionPolytopes(forces, rows)
+            for k in np.flatnonzero(~vertex_inside(forces, rows)).tolist():
+                if frictions[k].is_empty:
+                    warnings.append(f'leg {s.stance[k]!r} cannot push on the ground within '
+                                    'its torque limits (empty friction-bounded polytope)')
+        t4 = clock()
+        if s.stance:
+            awp = actuation_wrench_polytope(p, *stacked) if stacked is not None else \
+                minkowski_sum_of_lifts(p, [F.vertices for F in forces])
+            t5 = clock()
+            cwc = contact_wrench_cone(p, s.normals, s.mus, cfg.pyramid_sides)
+            fwp = feasible_wrench_polytope(awp, cwc)
+        else:
+            awp = fwp = _origin_set()
+            t5 = clock()
+        t6 = clock()
+        tol = self.feasibility_tol
+        awp_r = WrenchSetResult.from_margin('awp', awp, polytope_margin(
+            awp, w, feasibility_tol=tol))
+        fwp_r = WrenchSetResult.from_margin('fwp', fwp, polytope_margin(
+            fwp, w, feasibility_tol=tol))
+        legs = {foot: LegResult(foot, p[k], s.normals[k], float(s.mus[k]), forces[k],
+                                partial(frictions.__getitem__, k), forces[k].meta['singular'],
+                                forces[k].meta['near_singular'])
+                for k, foot in enumerate(s.stance)}
+        t7 = clock()
+        timings = {'validate': 1e3 * (t1 - t0), 'model': 1e3 * (t2 - t1),
+                   'force_polytopes': 1e3 * (t3 - t2), 'friction_polytopes': 1e3 * (t4 - t3),
+                   'awp': 1e3 * (t5 - t4), 'cwc_fwp': 1e3 * (t6 - t5),
+                   'margins': 1e3 * (t7 - t6), 'total': 1e3 * (t7 - t0)}
+        result = FeasibilityResult(cfg.robot_name, s.stance, kin.mass, kin.com, w, legs,
+                                   awp_r, fwp_r, None, warnings, timings)
+        if fws:
+            self.add_fws(result)
+        return result
+
+    def add_fws(self, result: FeasibilityResult) -> FeasibilityResult:
+        """Compute the FWS of an evaluated state and store it in ``result.fws``.
+
+        Lets a caller run :meth:`evaluate` with ``fws=False`` every cycle and add the FWS
+        (exact H-rep, directional margins, Euclidean margin) at a lower rate. Adds the
+        ``fws``, ``fws_directional`` and ``fws_margin`` timings [ms] (``total`` stays the
+        per-cycle evaluation without them).
+
+        :return: ``result``, updated in place.
+        """
+        clock = time.perf_counter
+        tol = self.feasibility_tol
+        w = result.wrench
+        t0 = clock()
+        if result.legs:
+            p = np.array([leg.position for leg in result.legs.values()])
+            S = feasible_wrench_set(p, [leg.friction_polytope for leg in result.legs.values()])
+        else:
+            S = _origin_set()
+        t1 = clock()
+        plus, minus = directional_margins(S, w, feasibility_tol=tol)
+        t2 = clock()
+        fws_r = WrenchSetResult.from_margin('fws', S, polytope_margin(
+            S, w, feasibility_tol=tol))
+        t3 = clock()
+        fws_r.directional = {axis: (float(a), float(b)) for axis, a, b in zip(AXES, plus, minus)}
+        result.fws = fws_r
+        tm = result.timings_ms
+        tm['fws'] = 1e3 * (t1 - t0)
+        tm['fws_directional'] = 1e3 * (t2 - t1)
+        tm['fws_margin'] = 1e3 * (t3 - t2)
+        return result
+
+    # -- stages ------------------------------------------------------------------------
+
+    def _friction_rows(self, normals: np.ndarray, mus: np.ndarray) -> np.ndarray:
+        """Return the pyramid rows of the stance legs (cached while contacts are unchanged)."""
+        key = (normals.tobytes(), mus.tobytes())
+        if self._rows_cache is None or self._rows_cache[0] != key:
+            self._rows_cache = (key, friction_rows(normals, mus, self.config.pyramid_sides))
+        return self._rows_cache[1]
+
+    def _force_polytopes(self, stance: tuple[str, ...], J: list, bias: list,
+                         warnings: list[str]) -> tuple[list[Polytope], tuple | None]:
+        """Return the force polytope of each stance leg (batched for 3-joint legs).
+
+        Also return ``(centers (K, 3), generators (K, 3, 3))`` of the AWP's zonotope when
+        every leg is a parallelepiped or a singular leg's flat image, else None.
+        """
+        K = len(stance)
+        out: list[Polytope | None] = [None] * K
+        stacked = None
+        if self._three_joint and K:
+            lo, hi = self._limits(stance)
+            pp = parallelepipeds(np.array(J), np.array(bias), lo, hi,
+                                 singular_rtol=self.singular_rtol)
+            ratio = pp['sigma_ratio'].tolist()
+            center, gen, V, A, b = (pp[key] for key in ('center', 'generators', 'vertices',
+                                                        'A', 'b'))
+            eye, zero = np.eye(3), np.zeros(3)
+            for k in range(K):
+                if ratio[k] > self.singular_rtol:
+                    meta = {'singular': False,
+                            'near_singular': ratio[k] <= self.near_singular_rtol,
+                            'sigma_ratio': ratio[k], 'center': center[k],
+                            'generators': gen[k]}
+                    out[k] = Polytope(3, V[k], A[k], b[k], zero, eye, meta)
+            if min(ratio) > self.singular_rtol:
+                stacked = (center, gen)
+        for k, foot in enumerate(stance):
+            if out[k] is None:
+                out[k] = force_polytope(J[k], bias[k], self._tau_min[foot],
+                                        self._tau_max[foot], singular_rtol=self.singular_rtol,
+                                        near_singular_rtol=self.near_singular_rtol)
+            meta = out[k].meta
+            if meta['singular']:
+                warnings.append(f'leg {foot!r} is singular (sigma ratio '
+                                f'{meta["sigma_ratio"]:.2e}); its force polytope is the '
+                                'pseudo-inverse image (flat)')
+            elif meta['near_singular']:
+                warnings.append(f'leg {foot!r} is near-singular (sigma ratio '
+                                f'{meta["sigma_ratio"]:.2e})')
+        if stacked is None and K and all(F.meta.get('generators', np.zeros(0)).shape == (3, 3)
+                                         for F in out):
+            stacked = (np.array([F.meta['center'] for F in out]),
+                       np.array([F.meta['generators'] for F in out]))
+        return out, stacked
+
+    def _limits(self, stance: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
+        """Return the stacked torque limits (K, n) of a stance set (cached per set)."""
+        lim = self._limit_cache.get(stance)
+        if lim is None:
+            lim = (np.array([self._tau_min[f] for f in stance]),
+                   np.array([self._tau_max[f] for f in stance]))
+            self._limit_cache[stance] = lim
+        return lim
+
+
+def _origin_set() -> Polytope:
+    """Return {0} in R^6 (no stance leg: every wrench set)."""
+    return Polytope(0, np.zeros((1, 6)), np.zeros((0, 6)), np.zeros(0), np.zeros(6),
+                    np.zeros((6, 0)))

@@ -1,0 +1,196 @@
+"""The result objects of one evaluation and their JSON form (``awp_eval``'s output).
+
+Frames: world-aligned axes, origin at the whole-robot CoM (base at the world origin with the
+measured orientation); forces [N], moments [N.m], positions [m]. See
+:mod:`awp_ros.evaluation.evaluator` for how each field is computed; the JSON keys are documented in
+:mod:`awp_ros.cli.eval`. Non-finite numbers become ``None`` (strict JSON).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+import math
+
+import numpy as np
+
+from awp_ros.geometry.margin import SetMargin
+from awp_ros.geometry.polytope import Polytope
+
+__all__ = ['AXES', 'FeasibilityResult', 'LegResult', 'WrenchSetResult']
+
+#: Names of the wrench axes, in the order of every 6-vector: force [N], moment [N.m].
+AXES = ('fx', 'fy', 'fz', 'mx', 'my', 'mz')
+
+
+@dataclass
+class LegResult:
+    """The polytopes of one stance leg (forces [N] on the robot, world axes).
+
+    ``position``: foot relative to the CoM [m]; ``normal``: unit contact normal;
+    ``singular``: J rank-deficient, the force polytope is the seed's pseudo-inverse image;
+    ``near_singular``: exact, but J is badly conditioned; ``friction``: the
+    friction-bounded polytope, or a callable returning it, called on the first access to
+    :attr:`friction_polytope` (it is then replaced by its value).
+    """
+
+    foot: str
+    position: np.ndarray
+    normal: np.ndarray
+    friction_coefficient: float
+    force_polytope: Polytope
+    friction: Polytope | Callable[[], Polytope]
+    singular: bool
+    near_singular: bool
+
+    @property
+    def friction_polytope(self) -> Polytope:
+        """Return the friction-bounded force polytope [N] (computed on first use)."""
+        if callable(self.friction):
+            self.friction = self.friction()
+        return self.friction
+
+    def to_dict(self) -> dict:
+        """Return the leg as JSON-ready builtins."""
+        return {
+            'position': _floats(self.position),
+            'normal': _floats(self.normal),
+            'friction_coefficient': self.friction_coefficient,
+            'singular': self.singular,
+            'near_singular': self.near_singular,
+            'force_polytope': _polytope_dict(self.force_polytope),
+            'friction_polytope': _polytope_dict(self.friction_polytope),
+        }
+
+
+@dataclass
+class WrenchSetResult:
+    """A 6D wrench set (AWP, FWP or FWS) and the margin of the evaluated wrench.
+
+    ``margin`` [N, N.m]: signed distance inside the affine hull (positive inside);
+    ``normal``: unit witness (outward normal of the nearest facet, or direction from the set
+    to ``w``); ``dimension``: affine dimension (-1 empty, 0 for no stance leg, 3 for one leg,
+    5 for two, 6 otherwise); ``affine_residual``: distance of ``w`` to the hull;
+    ``directional``: axis -> (plus, minus) extra admissible force [N] / moment [N.m].
+    """
+
+    name: str
+    polytope: Polytope
+    margin: float
+    normal: np.ndarray
+    dimension: int
+    affine_residual: float
+    feasible: bool
+    directional: dict[str, tuple[float, float]] | None = None
+
+    @classmethod
+    def from_margin(cls, name: str, polytope: Polytope, m: SetMargin) -> WrenchSetResult:
+        """Wrap a polytope and its :class:`~awp_ros.geometry.margin.SetMargin`."""
+        return cls(name, polytope, float(m.margin), np.asarray(m.normal, dtype=float),
+                   int(m.dimension), float(m.affine_residual), bool(m.feasible))
+
+    def to_dict(self, *, halfspaces: bool = True) -> dict:
+        """Return the set as JSON-ready builtins (non-finite numbers become None).
+
+        ``halfspaces`` rows are ``[a_1 .. a_6, b]`` with ``a . x <= b``; for a flat set the
+        affine hull is ``hull_origin + span(hull_basis columns)``.
+        """
+        out = {
+            'margin': _float(self.margin),
+            'normal': _floats(self.normal),
+            'dimension': self.dimension,
+            'affine_residual': _float(self.affine_residual),
+            'feasible': self.feasible,
+        }
+        if halfspaces:
+            P = self.polytope
+            out['halfspaces'] = _rows(P.halfspaces()) if not P.is_empty else []
+            out['hull_origin'] = _floats(P.hull_origin)
+            out['hull_basis'] = _rows(P.hull_basis.T)
+        if self.directional is not None:
+            out['directional'] = {axis: {'plus': _float(p), 'minus': _float(m)}
+                                  for axis, (p, m) in self.directional.items()}
+        return out
+
+
+@dataclass
+class FeasibilityResult:
+    """Everything one evaluation computed (see the module docstring).
+
+    ``com`` [m] is in the world frame with the base at the origin; ``wrench`` [N, N.m] is
+    the gravito-inertial wrench the contacts must supply, about the CoM; ``legs`` maps each
+    stance foot (config order) to its :class:`LegResult`; ``fws`` is None when not requested.
+    ``timings_ms`` [ms]: one entry per stage, ``total`` (the per-cycle evaluation without the
+    FWS) and, once the FWS is computed, ``fws``, ``fws_directional`` and ``fws_margin``.
+    """
+
+    robot: str
+    stance: tuple[str, ...]
+    mass: float
+    com: np.ndarray
+    wrench: np.ndarray
+    legs: dict[str, LegResult]
+    awp: WrenchSetResult
+    fwp: WrenchSetResult
+    fws: WrenchSetResult | None
+    warnings: list[str]
+    timings_ms: dict[str, float]
+
+    @property
+    def status(self) -> str:
+        """Return ``'ok'``, or ``'warning'`` when a warning was recorded."""
+        return 'warning' if self.warnings else 'ok'
+
+    @property
+    def feasible(self) -> bool:
+        """Return whether ``w`` is in the FWS (when computed), else in the FWP."""
+        return (self.fws if self.fws is not None else self.fwp).feasible
+
+    def to_dict(self, *, halfspaces: bool = True) -> dict:
+        """Return the result as the JSON document ``awp_eval`` prints."""
+        return {
+            'robot': self.robot,
+            'status': self.status,
+            'warnings': list(self.warnings),
+            'feasible': self.feasible,
+            'stance': list(self.stance),
+            'mass': self.mass,
+            'com': _floats(self.com),
+            'wrench': _floats(self.wrench),
+            'legs': {foot: leg.to_dict() for foot, leg in self.legs.items()},
+            'awp': self.awp.to_dict(halfspaces=halfspaces),
+            'fwp': self.fwp.to_dict(halfspaces=halfspaces),
+            'fws': None if self.fws is None else self.fws.to_dict(halfspaces=halfspaces),
+            'timings_ms': dict(self.timings_ms),
+        }
+
+
+# -- JSON helpers ------------------------------------------------------------------------
+
+
+def _float(x: float) -> float | None:
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _floats(x: np.ndarray) -> list:
+    return [_float(v) for v in np.asarray(x, dtype=float).ravel()]
+
+
+def _rows(X: np.ndarray) -> list:
+    X = np.asarray(X, dtype=float)
+    if np.all(np.isfinite(X)):
+        return X.tolist()
+    return [_floats(row) for row in X]
+
+
+def _polytope_dict(P: Polytope) -> dict:
+    out = {
+        'dimension': int(P.dimension),
+        'vertices': _rows(P.vertices),
+        'halfspaces': _rows(P.halfspaces()) if not P.is_empty else [],
+    }
+    if 0 <= P.dimension < P.ambient_dim:          # flat: halfspaces hold within the hull
+        out['hull_origin'] = _floats(P.hull_origin)
+        out['hull_basis'] = _rows(P.hull_basis.T)
+    return out

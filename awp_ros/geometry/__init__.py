@@ -1,0 +1,13 @@
+"""Polytope geometry, ROS-free: H/V-representations, exact Minkowski-sum facets, margins.
+
+- :mod:`polytope`: the Polytope value (vertices, H-rep A x <= b with unit rows, affine hull).
+- :mod:`linalg`: spans, ranks, hyperplane normals, subset trees (the numerics every module shares).
+- :mod:`exterior`: exterior products (generalised cross products) of small vector sets.
+- :mod:`face_lattice`: faces of a 3D polytope, grouped by dimension.
+- :mod:`zonotope`: H-rep of a zonotope (a sum of segments), e.g. the AWP of 3-joint legs.
+- :mod:`minkowski_facets`: facet normals of a sum of lifted polytopes from face combinations.
+- :mod:`margin`: signed Euclidean margin of a point to a polytope, and directional margins.
+"""
+
+__all__ = ['polytope', 'linalg', 'exterior', 'face_lattice', 'zonotope', 'minkowski_facets',
+           'margin']

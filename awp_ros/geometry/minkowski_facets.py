@@ -1,0 +1,243 @@
+"""Facet normals of a Minkowski sum of lifted 3D polytopes, by face combinations.
+
+The engine of :mod:`awp_ros.wrench.feasible_wrench_set`. For stance feet at ``p_k`` [m] relative
+to the CoM (world-aligned axes) and per-leg polytopes ``Q_k`` [N] (their faces and normal
+cones from :mod:`awp_ros.geometry.face_lattice`), the set is ``S = sum_k L_k Q_k`` in R^6; all is in
+the coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``r``, where
+``M_k = U^T L_k``. The unit outward normals ``a`` of its facets are found by:
+
+(2) every facet of ``S`` with unit normal ``a`` is ``sum_k M_k G_k`` for faces ``G_k`` of
+    ``Q_k`` whose dimensions ``d_k`` add up to ``r - 1`` and whose lifted direction spaces
+    ``M_k dir(G_k)`` are independent (an exchange argument on the faces maximising ``a``);
+    so ``a`` is the generalised cross product of the ``r - 1`` lifted face directions,
+    ``a . v = det[v, g_1, ..., g_{r-1}]``, computed with exterior products: the wedge
+    ``X_k`` of each face's directions is a ``d_k``-vector and ``a = *(X_1 ^ ... ^ X_K)``;
+(3) the choice is kept only if ``c_k = M_k^T a`` lies in the normal cone of ``G_k`` for
+    every leg, up to one global sign (``m . c_k >= 0`` for the face's check vectors ``m``,
+    :mod:`awp_ros.geometry.face_lattice`); each check value ``m . c_k = a . (M_k m)`` is a determinant
+    too, the pairing of ``(M_k m) ^ X_k`` with the wedge of the other legs' faces, so one
+    small matrix product per leg tests every combination at once (no loop over candidates).
+
+The caller then sets each row's offset to the support function of ``S`` (an exact
+supporting halfspace whatever ``a`` is). Every tolerance in (3) only admits extra (redundant
+but valid) rows: a facet's check values are exactly >= 0, so it is kept as long as the slack
+exceeds the rounding error. This is why
+(3) may run in float32 (about 2/3 of the work, 4 stance legs): its slack ``cone_tol`` (1e-5
+of the bound on the values) is 8x its worst rounding; the survivors' normals are recomputed
+in float64, as are the caller's offsets. Legs with ``d_k = 0`` need no enumeration (their
+vertex is the argmax of the support function).
+
+Organisation and cost. Choices are grouped by *pattern* (the dimensions ``d_k`` in decreasing
+order; reordering legs only flips the sign of ``a``, and both signs are tested), and all leg
+assignments of a pattern run as one batch. Parallel edges (and opposite facets) of a leg form
+one class: one normal, the union of their cones. Rank-deficient choices (a vanishing partial
+wedge) are dropped (``normal_tol``): by the exchange argument of (2) each facet also has an
+independent choice. For HyQ-like legs (11-13 vertices, about 14 edge classes, 7 facet
+classes) and 4 legs this is about 8e4 choices (three quarters in the pattern (2, 1, 1, 1)),
+3-8e3 survivors and 2-4e3 facets, in about 8 ms on one core. Run numpy's BLAS with one thread
+(e.g. ``OPENBLAS_NUM_THREADS=1``): with two threads on two shared cores it is 2x slower.
+Large temporaries live in per-thread buffers reused across calls
+(:func:`awp_ros.geometry.linalg.workspace`): fresh pages cost as much as the arithmetic.
+"""
+
+from __future__ import annotations
+
+from itertools import permutations
+from math import comb
+
+import numpy as np
+
+from awp_ros.geometry.exterior import hodge_normal, wedge_all, wedge_rows, wedge_table
+from awp_ros.geometry.face_lattice import Faces
+from awp_ros.geometry.linalg import workspace
+
+__all__ = ['FLOAT32_SLACK', 'facet_normals']
+
+# Bound on the float32 rounding of a check value (3), relative to ``bound``: with u = 6e-8
+# and q <= 20 products per value (inputs rounded, then summed in any order) the error is at
+# most (q + 1) u |O| |Y| <= 1.3e-6 bound; twice that is the smallest slack accepted.
+FLOAT32_SLACK = 2.5e-6
+
+
+def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
+                  normal_tol: float) -> tuple[np.ndarray, int]:
+    """Return unit candidate normals (N, r) that pass the normal-cone tests, and the count.
+
+    The face choices are grouped by *pattern*, the face dimensions sorted in decreasing order
+    (reordering the legs only flips the sign of ``a``, and both signs are tested); all leg
+    assignments of one pattern run as one batch, padded to the largest class count.
+    """
+    if r == 1:                                    # a segment: both directions of the line
+        return np.array([[1.0], [-1.0]]), 2
+    # Per leg and face dimension d: X (m, C(r, d)) wedges, Y (m, k, c, C(r, d + 1)) checks.
+    lifted = []
+    for F, Mk in zip(faces, M):
+        per_dim = {}
+        for d, group in enumerate(F.groups, start=1):
+            if d > r - 1:
+                break
+            dirs = group.dirs @ Mk.T               # (m, d, r)
+            X = dirs[:, 0, :]
+            for i in range(1, d):
+                X = wedge_rows(X, dirs[:, i, :], r, i, 1)
+            checks = group.checks @ Mk.T            # (m, k, c, r)
+            m, k, c = checks.shape[:3]
+            Y = wedge_rows(checks.reshape(m * k * c, r), np.repeat(X, k * c, axis=0), r, 1, d)
+            per_dim[d] = (X, Y.reshape(m, k, c, Y.shape[-1]), group.mask)
+        lifted.append(per_dim)
+    scale = max(float(np.linalg.norm(Mk, 2)) for Mk in M)
+    normals, count = [], 0
+    for dims, legs in _patterns(lifted, r - 1):
+        sets = [_stack([lifted[k][d] for k in column], r, d)
+                for d, column in zip(dims, zip(*legs))]
+        a, n = _pattern_normals(sets, dims, r, scale, cone_tol, normal_tol)
+        normals.append(a)
+        count += n
+    if not normals:
+        return np.zeros((0, r)), 0
+    return np.vstack(normals), count
+
+
+def _patterns(lifted: list[dict], total: int) -> list[tuple[list[int], list[tuple]]]:
+    """Return (dims, leg tuples): face dimensions in decreasing order adding up to ``total``.
+
+    Legs are distinct, and increasing within a run of equal dimensions (each face choice once).
+    """
+    out = []
+    available = sorted({d for per_dim in lifted for d in per_dim}, reverse=True)
+
+    def partitions(rest: int, largest: int) -> list[list[int]]:
+        if rest == 0:
+            return [[]]
+        return [[d] + tail for d in available if d <= min(rest, largest)
+                for tail in partitions(rest - d, d)]
+
+    for dims in partitions(total, total):
+        if len(dims) > len(lifted):
+            continue
+        legs = [ks for ks in permutations(range(len(lifted)), len(dims))
+                if all(d in lifted[k] for k, d in zip(ks, dims))
+                and all(ks[i] < ks[i + 1] for i in range(len(dims) - 1)
+                        if dims[i] == dims[i + 1])]
+        if legs:
+            out.append((dims, legs))
+    return out
+
+
+def _stack(items: list[tuple], r: int, d: int) -> tuple[np.ndarray, ...]:
+    """Stack the (X, Y, mask) of several legs into a batch, padding with empty classes."""
+    n = max(item[0].shape[0] for item in items)
+    k = max(item[1].shape[1] for item in items)
+    c = max(item[1].shape[2] for item in items)
+    B = len(items)
+    Xb = np.zeros((B, n, comb(r, d)))
+    Yb = np.zeros((B, n, k, c, comb(r, d + 1)))
+    mb = np.zeros((B, n, k), dtype=bool)
+    for b, (X, Y, mask) in enumerate(items):
+        Xb[b, :X.shape[0]] = X
+        Yb[b, :Y.shape[0], :Y.shape[1], :Y.shape[2]] = Y
+        mb[b, :mask.shape[0], :mask.shape[1]] = mask
+    return Xb, Yb, mb
+
+
+def _pattern_normals(sets: list, dims: list[int], r: int, scale: float, cone_tol: float,
+                     normal_tol: float) -> tuple[np.ndarray, int]:
+    """Normals of every face choice of one pattern (a batch of leg tuples) passing (3).
+
+    ``scale`` bounds the norm of every lifted unit vector, so ``bound = scale ** r`` bounds
+    ``|a|`` times the norm of a lifted check vector (Hadamard) and ``cone_tol * bound`` is an
+    absolute slack. Arrays carry a leading batch axis ``B``; the candidates of one batch entry
+    form the grid ``(n_0, ..., n_{J-1})`` of class indices.
+    """
+    J = len(sets)
+    bound = scale ** r
+    Xs = [item[0] for item in sets]
+    B = Xs[0].shape[0]
+    ns = [X.shape[1] for X in Xs]
+    N = int(np.prod(ns))
+    # Prefix and suffix wedges; O_j = prefix_{<j} ^ suffix_{>j}.
+    pre, suf = [np.ones((B, 1, 1))], [np.ones((B, 1, 1))]
+    deg_pre, deg_suf = [0], [0]
+    for j in range(J - 1):
+        pre.append(_wedge_into(f'fws_pre{j}', pre[-1], Xs[j], r, deg_pre[-1], dims[j]))
+        deg_pre.append(deg_pre[-1] + dims[j])
+    for j in range(J - 1, 0, -1):
+        suf.append(_wedge_into(f'fws_suf{j}', Xs[j], suf[-1], r, dims[j], deg_suf[-1]))
+        deg_suf.append(deg_suf[-1] + dims[j])
+    suf.reverse()
+    deg_suf.reverse()
+    # Running min and max over all check values (3), in the grid layout (B, n_0, ..., n_J-1),
+    # in float32 (a filter whose slack exceeds its rounding; the survivors' normals are
+    # recomputed in float64). Buffers are reused across calls (no page faults).
+    lo = workspace('fws_lo', (B,) + tuple(ns), np.float32)
+    hi = workspace('fws_hi', (B,) + tuple(ns), np.float32)
+    lo.fill(0.0)
+    hi.fill(0.0)
+    for j in range(J):
+        _, Y, mask = sets[j]                        # Y (B, n_j, k, c, C(r, d_j + 1))
+        k, c = Y.shape[2:4]
+        if c == 0:
+            continue
+        other = _wedge_into('fws_o', pre[j], suf[j], r, deg_pre[j], deg_suf[j])  # (B, N / n_j, .)
+        T = wedge_table(r, r - 1 - dims[j], dims[j] + 1)[:, :, 0]
+        T = T * (-1.0) ** (deg_pre[j] + (dims[j] + 1) * deg_suf[j])
+        rows = other.shape[1]
+        other32 = workspace('fws_o32', other.shape, np.float32)
+        other32[...] = other
+        OT = np.swapaxes(other32, 1, 2)               # (B, ., rows)
+        Y = Y @ T.T                                   # pairs with O (not O @ T): smaller
+        # Slot i (the i-th parallel face of a class) exists for a prefix of the classes
+        # (classes come sorted by size), so slot i > 0 only runs over that prefix.
+        vmin = vmax = None
+        for i in range(k):
+            m = ns[j] if i == 0 else int(mask[:, :, i].sum(axis=1).max())
+            if m == 0:
+                break
+            Yi = Y[:, :m, i].transpose(0, 2, 1, 3).reshape(B, c * m, -1).astype(np.float32)
+            out = workspace(f'fws_vals{min(i, 1)}', (B, c * m, rows), np.float32)
+            vals = np.matmul(Yi, OT, out=out).reshape(B, c, m, rows)  # [b, check, class, row]
+            fmin = vals[:, 0]
+            fmax = workspace(f'fws_fmax{min(i, 1)}', (B, m, rows), np.float32)
+            fmax[...] = fmin
+            for ci in range(1, c):
+                np.minimum(fmin, vals[:, ci], out=fmin)
+                np.maximum(fmax, vals[:, ci], out=fmax)
+            # A class passes when one of its faces does (union of their normal cones);
+            # empty slots (padding) get -inf / +inf, so an empty class fails both signs.
+            empty = ~mask[:, :m, i]
+            fmin[empty] = -np.inf
+            fmax[empty] = np.inf
+            if vmin is None:
+                vmin, vmax = fmin, fmax
+            else:
+                np.maximum(vmin[:, :m], fmin, out=vmin[:, :m])
+                np.minimum(vmax[:, :m], fmax, out=vmax[:, :m])
+        shape = [B, ns[j]] + ns[:j] + ns[j + 1:]
+        np.minimum(lo, np.moveaxis(vmin.reshape(shape), 1, j + 1), out=lo)
+        np.maximum(hi, np.moveaxis(vmax.reshape(shape), 1, j + 1), out=hi)
+    # Rank-deficient choices (a vanishing partial wedge) fail both signs.
+    small = (normal_tol * bound) ** 2
+    dead_last = np.einsum('bnp,bnp->bn', pre[J - 1], pre[J - 1]) <= small   # (B, N / n_-1)
+    dead_first = np.einsum('bnp,bnp->bn', suf[0], suf[0]) <= small          # (B, N / n_0)
+    for grid, fill in ((lo, -np.inf), (hi, np.inf)):
+        grid.reshape(B, -1, ns[-1])[dead_last] = fill
+        grid.reshape(B, ns[0], -1).transpose(0, 2, 1)[dead_first] = fill
+    tol = cone_tol * bound
+    pos, neg = np.flatnonzero(lo >= -tol), np.flatnonzero(hi <= tol)
+    # Normals of the survivors only: W = prefix_{<J-1} ^ X_{J-1}, a_i = (-1)^i W_{[r] - i}.
+    idx = np.concatenate([pos, neg])
+    b, rest = idx // N, idx % N
+    W = wedge_rows(pre[J - 1][b, rest // ns[-1]], Xs[-1][b, rest % ns[-1]], r,
+                    deg_pre[J - 1], dims[-1])
+    a = hodge_normal(W)
+    a[pos.size:] *= -1.0
+    norm = np.linalg.norm(a, axis=1)
+    keep = norm > normal_tol * bound
+    return a[keep] / norm[keep, None], B * N
+
+
+def _wedge_into(name: str, X: np.ndarray, Y: np.ndarray, r: int, p: int,
+                q: int) -> np.ndarray:
+    """Return :func:`~awp_ros.geometry.exterior.wedge_all` written to the workspace buffer ``name``."""
+    out = workspace(name, (X.shape[0], X.shape[1], Y.shape[1] * comb(r, p + q)))
+    return wedge_all(X, Y, r, p, q, out=out)

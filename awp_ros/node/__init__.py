@@ -1,0 +1,11 @@
+"""The awp_node process: an rclpy shell over awp_ros.ros.pipeline.
+
+- :mod:`node`: AwpNode and main() of the awp_node executable.
+- :mod:`parameters`: declaring, validating (on-set) and applying (post-set) its parameters.
+- :mod:`input_drain`: taking queued input messages past the rclpy executor.
+- :mod:`marker_worker`: building marker arrays in a worker process.
+- :mod:`diagnostics`: counters and the /diagnostics DiagnosticArray.
+- :mod:`launcher`: start and stop awp_node as a process (tests, soak, demo).
+"""
+
+__all__ = ['node', 'parameters', 'input_drain', 'marker_worker', 'diagnostics', 'launcher']

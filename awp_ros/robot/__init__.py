@@ -1,0 +1,8 @@
+"""The robot (ROS-free): configuration, Pinocchio model, state.
+
+- :mod:`config`: RobotConfig, config files and their lookup.
+- :mod:`model`: the Pinocchio model, leg chains, kinematics and dynamics terms.
+- :mod:`state`: RobotState (what one evaluation answers) and its validation.
+"""
+
+__all__ = ['config', 'model', 'state']

@@ -1,0 +1,344 @@
+"""Conversions between ROS messages and the core's objects (the node's and replay's glue).
+
+- :class:`~awp_ros.geometry.polytope.Polytope` <-> ``awp_ros_msgs/Polytope``: numpy arrays go into the
+  ``float64[]`` fields as ``array.array('d')`` built from their bytes (no per-element Python
+  objects); matrices are flattened row-major (element ``(i, j)`` of a ``k x n`` matrix at
+  ``i * n + j``), as ``Polytope.msg`` documents.
+- :class:`~awp_ros.evaluation.evaluator.FeasibilityResult` -> ``FeasibilityReport``, ``WrenchPolytope``
+  (AWP / FWP / FWS) and ``LegPolytopes``. Wrenches ``[f; tau]`` [N, N.m] and forces [N] are in
+  the CoM-centred frame with world-aligned axes (REP 103) whose name the caller passes in the
+  header (parameter ``wrench_frame_id``); foot positions [m] relative to the CoM, same axes.
+- ``sensor_msgs/JointState`` + ``awp_ros_msgs/ContactState`` (+ ``sensor_msgs/Imu``) ->
+  :class:`~awp_ros.robot.state.RobotState`. Message-level checks (array lengths, duplicate names,
+  contact names that are not feet) raise :class:`~awp_ros.errors.InputError`; joints the
+  model does not have are dropped with a note (when the caller passes the model's joints);
+  the values themselves are validated by the evaluator.
+
+This module imports message classes but not rclpy.
+"""
+
+from __future__ import annotations
+
+from array import array
+from collections.abc import Collection, Sequence
+import math
+
+from awp_ros_msgs.msg import ContactState, FeasibilityReport, LegPolytope, LegPolytopes
+from awp_ros_msgs.msg import Polytope as PolytopeMsg
+from awp_ros_msgs.msg import WrenchPolytope
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import Point
+import numpy as np
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Header
+
+from awp_ros.errors import InputError
+from awp_ros.evaluation.result import AXES, FeasibilityResult, WrenchSetResult
+from awp_ros.geometry.polytope import Polytope
+from awp_ros.robot.state import RobotState
+
+__all__ = [
+    'KINDS',
+    'error_report',
+    'leg_polytopes_msg',
+    'polytope_from_msg',
+    'polytope_to_msg',
+    'report_msg',
+    'robot_state_from_msgs',
+    'stamp_to_ns',
+    'wrench_polytope_msg',
+]
+
+#: WrenchPolytope.kind of each wrench set name.
+KINDS = {'awp': WrenchPolytope.AWP, 'fwp': WrenchPolytope.FWP, 'fws': WrenchPolytope.FWS}
+
+_NAN6 = np.full(6, np.nan)
+
+
+def _shorten(items: Sequence, limit: int = 8) -> str:
+    """Return ``repr(list(items))``, eliding entries after the first ``limit``."""
+    items = list(items)
+    if len(items) <= limit:
+        return repr(items)
+    return repr(items[:limit])[:-1] + f', ... ({len(items) - limit} more)]'
+
+
+def stamp_to_ns(stamp: Time) -> int:
+    """Return a ``builtin_interfaces/Time`` as integer nanoseconds."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+def _doubles(x: np.ndarray) -> array:
+    """Return ``x`` flattened row-major as ``array('d')`` (one memcpy, no Python floats)."""
+    return array('d', np.ascontiguousarray(x, dtype=np.float64).tobytes())
+
+
+# -- polytopes -----------------------------------------------------------------------------
+
+
+def polytope_to_msg(P: Polytope, msg: PolytopeMsg | None = None) -> PolytopeMsg:
+    """Fill an ``awp_ros_msgs/Polytope`` from a :class:`Polytope` (units unchanged).
+
+    :param P: the polytope, ambient dimension n (3: forces [N]; 6: wrenches [N, N.m]).
+    :param msg: a message to fill in place (default: a new one).
+    :return: the message: ``vertices`` (k x n), ``halfspace_normals`` (m x n),
+        ``halfspace_offsets`` (m), ``hull_origin`` (n), ``hull_basis`` (n x r), row-major.
+    """
+    msg = PolytopeMsg() if msg is None else msg
+    msg.ambient_dimension = P.ambient_dim
+    msg.dimension = int(P.dimension)
+    msg.vertices = _doubles(P.vertices)
+    msg.halfspace_normals = _doubles(P.A)
+    msg.halfspace_offsets = _doubles(P.b)
+    msg.hull_origin = _doubles(P.hull_origin)
+    msg.hull_basis = _doubles(P.hull_basis)
+    return msg
+
+
+def polytope_from_msg(msg: PolytopeMsg) -> Polytope:
+    """Return the :class:`Polytope` of an ``awp_ros_msgs/Polytope`` (inverse of the above).
+
+    :raises InputError: when an array length does not fit ``ambient_dimension`` and
+        ``dimension``.
+    """
+    n = int(msg.ambient_dimension)
+    r = int(msg.dimension)
+    if n <= 0 or not -1 <= r <= n:
+        raise InputError(f'polytope message has dimension {r} in ambient dimension {n}')
+    V = _matrix(msg.vertices, n, 'vertices')
+    A = _matrix(msg.halfspace_normals, n, 'halfspace_normals')
+    b = np.array(msg.halfspace_offsets, dtype=float)
+    o = np.array(msg.hull_origin, dtype=float)
+    U = np.array(msg.hull_basis, dtype=float)
+    if b.shape != (A.shape[0],):
+        raise InputError(f'polytope message has {A.shape[0]} halfspace normals but '
+                         f'{b.size} offsets')
+    if o.shape != (n,):
+        raise InputError(f'polytope message hull_origin has {o.size} values, not {n}')
+    if U.size != n * max(r, 0):
+        raise InputError(f'polytope message hull_basis has {U.size} values, not {n} x '
+                         f'{max(r, 0)}')
+    return Polytope(r, V, A, b, o, U.reshape(n, max(r, 0)))
+
+
+def _matrix(values, n: int, name: str) -> np.ndarray:
+    """Return a row-major flattened field as a (k, n) array."""
+    flat = np.array(values, dtype=float)
+    if flat.size % n:
+        raise InputError(f'polytope message field {name} has {flat.size} values, not a '
+                         f'multiple of {n}')
+    return flat.reshape(-1, n)
+
+
+def wrench_polytope_msg(header: Header, kind: str, stance: Sequence[str],
+                        reference_point: np.ndarray, P: Polytope) -> WrenchPolytope:
+    """Return a ``WrenchPolytope`` message.
+
+    :param header: stamp of the answered joint state; frame_id the CoM-centred,
+        world-aligned wrench frame.
+    :param kind: ``'awp'``, ``'fwp'`` or ``'fws'``.
+    :param stance: the stance feet summed.
+    :param reference_point: the CoM in the base link frame [m] (moments are about it).
+    :param P: the 6D wrench polytope [N, N.m].
+    """
+    msg = WrenchPolytope()
+    msg.header = header
+    msg.kind = KINDS[kind]
+    msg.stance_feet = list(stance)
+    x, y, z = (float(c) for c in reference_point)
+    msg.reference_point = Point(x=x, y=y, z=z)
+    polytope_to_msg(P, msg.polytope)
+    return msg
+
+
+def leg_polytopes_msg(header: Header, result: FeasibilityResult) -> LegPolytopes:
+    """Return the ``LegPolytopes`` of an evaluation (stance feet in config order)."""
+    msg = LegPolytopes()
+    msg.header = header
+    legs = []
+    for foot, leg in result.legs.items():
+        item = LegPolytope()
+        item.foot = foot
+        x, y, z = (float(c) for c in leg.position)
+        item.position = Point(x=x, y=y, z=z)
+        polytope_to_msg(leg.force_polytope, item.force_polytope)
+        polytope_to_msg(leg.friction_polytope, item.friction_polytope)
+        item.singular = bool(leg.singular)
+        legs.append(item)
+    msg.legs = legs
+    return msg
+
+
+# -- reports -------------------------------------------------------------------------------
+
+
+def _set_fields(msg: FeasibilityReport, name: str, s: WrenchSetResult | None) -> None:
+    """Copy one set's margin, witness, dimension, residual and feasibility into the report."""
+    if s is None:
+        setattr(msg, f'{name}_margin', math.nan)
+        setattr(msg, f'{name}_normal', _NAN6.copy())
+        setattr(msg, f'{name}_affine_residual', math.nan)
+        setattr(msg, f'{name}_feasible', False)
+        return
+    setattr(msg, f'{name}_margin', float(s.margin))
+    setattr(msg, f'{name}_normal', np.asarray(s.normal, dtype=np.float64))
+    setattr(msg, f'{name}_dimension', max(int(s.dimension), 0))
+    setattr(msg, f'{name}_affine_residual', float(s.affine_residual))
+    setattr(msg, f'{name}_feasible', bool(s.feasible))
+
+
+def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float,
+               fws: WrenchSetResult | None = None, fws_stamp: Time | None = None,
+               status: int | None = None, status_message: str | None = None
+               ) -> FeasibilityReport:
+    """Return the ``FeasibilityReport`` of an evaluation.
+
+    ``feasible`` is ``fwp_feasible and fws_feasible``: equal to ``fws_feasible`` when the FWS
+    was computed for this message (FWS is a subset of FWP) and never true when the current
+    FWP excludes the wrench while an older FWS admitted it.
+
+    :param header: stamp of the answered joint state; frame_id the wrench frame.
+    :param result: the evaluation.
+    :param compute_time: wall time of the evaluation [s].
+    :param fws: the latest FWS result (default ``result.fws``); None leaves the ``fws_*``
+        fields NaN / false.
+    :param fws_stamp: stamp of the joint state ``fws`` was computed for (default the header's).
+    :param status: STATUS_* constant (default OK, or WARNING when the result has warnings).
+    :param status_message: default the warnings joined with ``'; '``.
+    """
+    msg = FeasibilityReport()
+    msg.header = header
+    if status is None:
+        status = FeasibilityReport.STATUS_WARNING if result.warnings \
+            else FeasibilityReport.STATUS_OK
+    msg.status = status
+    msg.status_message = '; '.join(result.warnings) if status_message is None \
+        else status_message
+    msg.stance_feet = list(result.stance)
+    fx, fy, fz, tx, ty, tz = (float(c) for c in result.wrench)
+    msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = fx, fy, fz
+    msg.wrench.torque.x, msg.wrench.torque.y, msg.wrench.torque.z = tx, ty, tz
+    fws = result.fws if fws is None else fws
+    _set_fields(msg, 'awp', result.awp)
+    _set_fields(msg, 'fwp', result.fwp)
+    _set_fields(msg, 'fws', fws)
+    if fws is not None and fws.directional is not None:
+        d = fws.directional
+        msg.fws_directional_plus = np.array([d[a][0] for a in AXES], dtype=np.float64)
+        msg.fws_directional_minus = np.array([d[a][1] for a in AXES], dtype=np.float64)
+    else:
+        msg.fws_directional_plus = _NAN6.copy()
+        msg.fws_directional_minus = _NAN6.copy()
+    if fws is not None:
+        msg.fws_stamp = header.stamp if fws_stamp is None else fws_stamp
+    msg.feasible = bool(msg.fwp_feasible and msg.fws_feasible)
+    msg.compute_time = float(compute_time)
+    return msg
+
+
+def error_report(header: Header, status: int, reason: str, *, compute_time: float = 0.0
+                 ) -> FeasibilityReport:
+    """Return a report for a message that was not evaluated: margins NaN, not feasible.
+
+    :param status: ``STATUS_INVALID_INPUT``, ``STATUS_STALE_INPUT`` or ``STATUS_ERROR``.
+    :param reason: human-readable reason (names the bad value).
+    """
+    msg = FeasibilityReport()
+    msg.header = header
+    msg.status = status
+    msg.status_message = reason
+    for name in ('awp', 'fwp', 'fws'):
+        _set_fields(msg, name, None)
+    msg.fws_directional_plus = _NAN6.copy()
+    msg.fws_directional_minus = _NAN6.copy()
+    msg.feasible = False
+    msg.compute_time = float(compute_time)
+    return msg
+
+
+# -- inputs --------------------------------------------------------------------------------
+
+
+def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
+                          imu: Imu | None = None, *, feet: Sequence[str],
+                          use_velocities: bool = True,
+                          joint_names: Collection[str] | None = None,
+                          notes: list[str] | None = None) -> RobotState:
+    """Return the :class:`RobotState` of one joint-state message and the latest inputs.
+
+    :param joints: ``name`` and ``position`` [rad] of every joint (same length); ``velocity``
+        [rad/s] is used when ``use_velocities`` and it has one entry per name (empty = none).
+        ``effort`` is ignored.
+    :param contacts: stance (``in_contact``), per-foot unit normals (world-aligned axes) and
+        friction coefficients; feet not named are in swing; None = no stance leg.
+    :param imu: when given, ``orientation`` is the base orientation (the IMU frame must be
+        aligned with the base link); an orientation covariance starting with -1 (no
+        orientation estimate) is an error.
+    :param feet: the config's feet (contact names must be among them).
+    :param use_velocities: pass joint velocities (Coriolis terms in the bias torques).
+    :param joint_names: the model's joints (a set is fastest). Names of ``joints`` not among
+        them (e.g. an arm's or a gripper's joints that the model leaves out) are ignored and
+        a note naming them is appended to ``notes``. None: every name is passed on, and the
+        evaluator rejects unknown ones.
+    :param notes: receives the notes about ignored entries (warnings of the report).
+    :raises InputError: array lengths that do not match, duplicate names, contact names that
+        are not feet (the message names the bad entry).
+    """
+    names = list(joints.name)
+    if len(joints.position) != len(names):
+        raise InputError(f'joint_states has {len(names)} names but {len(joints.position)} '
+                         'positions')
+    if len(set(names)) != len(names):
+        dup = sorted({n for n in names if names.count(n) > 1})
+        raise InputError(f'joint_states names joints twice: {_shorten(dup)}')
+    positions = dict(zip(names, np.asarray(joints.position, dtype=float).tolist()))
+    velocities = None
+    if use_velocities and len(joints.velocity):
+        if len(joints.velocity) != len(names):
+            raise InputError(f'joint_states has {len(names)} names but '
+                             f'{len(joints.velocity)} velocities')
+        velocities = dict(zip(names, np.asarray(joints.velocity, dtype=float).tolist()))
+    if joint_names is not None:
+        unknown = [n for n in names if n not in joint_names]
+        if unknown:
+            for n in unknown:
+                del positions[n]
+                if velocities is not None:
+                    del velocities[n]
+            if notes is not None:
+                notes.append(f'joint_states names joints the model does not have, ignored: '
+                             f'{_shorten(unknown)}')
+    stance: list[str] = []
+    normals: dict = {}
+    mus: dict = {}
+    if contacts is not None:
+        cnames = list(contacts.names)
+        unknown = [n for n in cnames if n not in feet]
+        if unknown:
+            raise InputError(f'contacts names unknown feet {unknown}; feet are {list(feet)}')
+        if len(set(cnames)) != len(cnames):
+            raise InputError(f'contacts names a foot twice: {cnames}')
+        k = len(cnames)
+        for field, n in (('in_contact', len(contacts.in_contact)),
+                         ('normals', len(contacts.normals)),
+                         ('friction_coefficients', len(contacts.friction_coefficients))):
+            if n != k and not (n == 0 and field != 'in_contact'):
+                raise InputError(f'contacts has {k} names but {n} {field}'
+                                 + ('' if field == 'in_contact' else ' (0 = use the default)'))
+        stance = [n for n, c in zip(cnames, contacts.in_contact) if c]
+        if len(contacts.normals):
+            normals = {n: (v.x, v.y, v.z) for n, v, c in
+                       zip(cnames, contacts.normals, contacts.in_contact) if c}
+        if len(contacts.friction_coefficients):
+            mus = {n: float(m) for n, m, c in
+                   zip(cnames, contacts.friction_coefficients, contacts.in_contact) if c}
+    orientation = (0.0, 0.0, 0.0, 1.0)
+    if imu is not None:
+        if imu.orientation_covariance[0] == -1.0:
+            raise InputError('imu has no orientation estimate (orientation_covariance[0] '
+                             '== -1)')
+        o = imu.orientation
+        orientation = (o.x, o.y, o.z, o.w)
+    return RobotState(joint_positions=positions, joint_velocities=velocities,
+                      base_orientation=orientation, stance=stance, normals=normals,
+                      friction_coefficients=mus)

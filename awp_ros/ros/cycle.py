@@ -1,0 +1,112 @@
+"""The outputs answering one joint-state message: :class:`Cycle` (built on demand)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from awp_ros_msgs.msg import FeasibilityReport, LegPolytopes, WrenchPolytope
+import numpy as np
+from std_msgs.msg import Header
+from visualization_msgs.msg import MarkerArray
+
+from awp_ros.ros.conversions import leg_polytopes_msg, wrench_polytope_msg
+from awp_ros.evaluation.result import FeasibilityResult, WrenchSetResult
+from awp_ros.ros.markers import build_markers, error_markers, MarkerStyle
+
+__all__ = ['Cycle', 'OUTPUTS']
+
+#: Output topics (relative to the node, ``~/<name>``) in the order of :meth:`Cycle.messages`.
+OUTPUTS = ('report', 'awp', 'fwp', 'fws', 'leg_polytopes', 'markers')
+
+
+class Cycle:
+    """The outputs answering one joint-state message (built on demand, then cached).
+
+    :ivar header: stamp of the joint state, frame_id ``wrench_frame_id``.
+    :ivar report: the FeasibilityReport (always).
+    :ivar result: the evaluation, or None when the message was not evaluated.
+    :ivar fws_computed: whether the FWS was computed for this message.
+    :ivar markers_due: whether markers are published for this message.
+    """
+
+    def __init__(self, header: Header, report: FeasibilityReport,
+                 result: FeasibilityResult | None, *, fws_computed: bool, markers_due: bool,
+                 marker_header: Header, marker_frame: tuple, style: MarkerStyle,
+                 reference_point: np.ndarray, latest_fws: WrenchSetResult | None,
+                 pyramid_sides: int) -> None:
+        self.header = header
+        self.report = report
+        self.result = result
+        self.fws_computed = fws_computed
+        self.markers_due = markers_due
+        self._marker_header = marker_header
+        self._marker_frame = marker_frame
+        self._style = style
+        self._reference_point = reference_point
+        self._latest_fws = latest_fws
+        self._sides = pyramid_sides
+        self._cache: dict = {}
+
+    def _wrench(self, kind: str) -> WrenchPolytope | None:
+        r = self.result
+        if r is None or (kind == 'fws' and not self.fws_computed):
+            return None
+        if kind not in self._cache:
+            self._cache[kind] = wrench_polytope_msg(self.header, kind, r.stance,
+                                                    self._reference_point,
+                                                    getattr(r, kind).polytope)
+        return self._cache[kind]
+
+    def awp(self) -> WrenchPolytope | None:
+        """Return the AWP message (None when not evaluated)."""
+        return self._wrench('awp')
+
+    def fwp(self) -> WrenchPolytope | None:
+        """Return the FWP message (None when not evaluated)."""
+        return self._wrench('fwp')
+
+    def fws(self) -> WrenchPolytope | None:
+        """Return the FWS message when it was computed for this message, else None."""
+        return self._wrench('fws')
+
+    def leg_polytopes(self) -> LegPolytopes | None:
+        """Return the LegPolytopes message (None when not evaluated)."""
+        if self.result is None:
+            return None
+        if 'legs' not in self._cache:
+            self._cache['legs'] = leg_polytopes_msg(self.header, self.result)
+        return self._cache['legs']
+
+    def markers(self) -> MarkerArray | None:
+        """Return the MarkerArray when markers are due for this message, else None."""
+        if not self.markers_due:
+            return None
+        if 'markers' not in self._cache:
+            function, args, kwargs = self.marker_job()
+            self._cache['markers'] = function(*args, **kwargs)
+        return self._cache['markers']
+
+    def marker_job(self) -> tuple:
+        """Return ``(function, args, kwargs)`` building :meth:`markers` (picklable).
+
+        What :class:`awp_ros.node.marker_worker.MarkerWorker` runs in its process. The wrench
+        sets whose margins only label the markers travel without their polytopes.
+        """
+        if self.result is None:
+            return error_markers, (self._marker_header, self.report.status_message), {
+                'style': self._style}
+        r = self.result
+        slim = replace(r, awp=replace(r.awp, polytope=None),
+                       fws=None if r.fws is None else replace(r.fws, polytope=None))
+        fws = None if self._latest_fws is None else replace(self._latest_fws, polytope=None)
+        R, t = self._marker_frame
+        return build_markers, (slim, self._marker_header), {
+            'style': self._style, 'fws': fws, 'pyramid_sides': self._sides, 'rotation': R,
+            'translation': t, 'status_text': self.report.status_message}
+
+    def messages(self) -> dict:
+        """Return every output of this message: topic name (``OUTPUTS``) -> message."""
+        out = {'report': self.report, 'awp': self.awp(), 'fwp': self.fwp(),
+               'fws': self.fws(), 'leg_polytopes': self.leg_polytopes(),
+               'markers': self.markers()}
+        return {k: v for k, v in out.items() if v is not None}

@@ -1,0 +1,349 @@
+"""RViz / Foxglove markers of one evaluation (``visualization_msgs/MarkerArray``).
+
+What is drawn (the seed's Fig. 1 plus the wrench), each namespace stating its force scale
+``s`` [m/N] so that a length in the scene reads back as a force:
+
+- ``force_polytope [s m/N]`` (blue) and ``friction_polytope [s m/N]`` (red): per stance leg,
+  the force polytope and the friction-bounded polytope as translucent ``TRIANGLE_LIST``
+  meshes with their origin (zero force) at the foot: vertex ``f`` is drawn at ``p + s f``.
+- ``friction_pyramid [s m/N]`` (pink): the N-sided pyramid of each stance leg (apex at the
+  foot), cut at the height of the leg's force polytope along the normal.
+- ``gravito_inertial_wrench [s m/N]`` (orange ``ARROW`` from the CoM to ``c + s f``) and
+  ``gravito_inertial_moment [s_m m/(N.m)]`` (purple), the wrench the contacts must supply.
+- ``fwp_force_slice [s m/N]`` (green): the **force slice of the FWP at the current moment**,
+  :math:`\\{f : [f; \\tau_{now}] \\in FWP\\}`, drawn from the CoM: the wrench arrow's tip is
+  inside it exactly when the wrench is in the FWP. It is 3D with 3-4 stance legs, a polygon
+  with 2 legs (the FWP is 5D), at most a point with 1 leg (not drawn).
+- ``com`` (white ``SPHERE``), ``stance_feet`` (white ``SPHERE_LIST``) and ``margins``
+  (``TEXT_VIEW_FACING`` lines above the CoM, one per set, green when the wrench is in the
+  set (margin >= 0 on its affine hull), red when not, grey when not computed).
+
+Every array starts with a ``DELETEALL`` marker, so legs that lift off vanish. Points are in
+the CoM-centred world-aligned frame (``wrench_frame_id``; RViz needs no TF when it is the
+fixed frame), or in the base link frame when the caller passes its rotation and offset.
+Markers are built at the marker rate only, not in the per-cycle hot path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+from builtin_interfaces.msg import Duration
+from geometry_msgs.msg import Point
+import numpy as np
+from scipy.optimize import linprog
+from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
+from std_msgs.msg import ColorRGBA, Header
+from visualization_msgs.msg import Marker, MarkerArray
+
+from awp_ros.wrench.contact_wrench_cone import friction_pyramids
+from awp_ros.evaluation.result import FeasibilityResult, WrenchSetResult
+from awp_ros.geometry.polytope import Polytope
+
+__all__ = ['MarkerStyle', 'build_markers', 'error_markers', 'force_slice', 'hull_triangles',
+           'quaternion_matrix']
+
+_COLORS = {
+    'force_polytope': (0.20, 0.45, 1.00, 0.30),
+    'friction_polytope': (1.00, 0.25, 0.30, 0.55),
+    'friction_pyramid': (1.00, 0.60, 0.85, 0.18),
+    'fwp_force_slice': (0.20, 0.80, 0.35, 0.25),
+    'wrench': (1.00, 0.55, 0.00, 1.00),
+    'moment': (0.60, 0.30, 0.90, 1.00),
+    'com': (1.00, 1.00, 1.00, 1.00),
+    'positive': (0.20, 0.85, 0.20, 1.00),
+    'negative': (1.00, 0.20, 0.20, 1.00),
+    'unknown': (0.70, 0.70, 0.70, 1.00),
+}
+
+
+@dataclass(frozen=True)
+class MarkerStyle:
+    """Sizes of the markers.
+
+    :ivar force_scale: scene length per newton [m/N] (forces drawn as ``p + s f``).
+    :ivar moment_scale: scene length per newton-metre [m/(N.m)] for the moment arrow.
+    :ivar text_height: height of the margin text [m].
+    :ivar arrow_diameter: shaft diameter of the wrench arrows [m].
+    :ivar com_diameter: diameter of the CoM sphere [m].
+    """
+
+    force_scale: float = 0.0005
+    moment_scale: float = 0.002
+    text_height: float = 0.06
+    arrow_diameter: float = 0.02
+    com_diameter: float = 0.05
+
+
+def quaternion_matrix(q: np.ndarray) -> np.ndarray:
+    """Return the rotation matrix (3, 3) of a unit quaternion ``[x, y, z, w]``."""
+    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+# -- geometry for drawing ------------------------------------------------------------------
+
+
+def hull_triangles(points: np.ndarray, *, flat_tol: float = 1e-9) -> np.ndarray:
+    """Return a triangulation ``(T, 3, 3)`` of the boundary of the convex hull of points.
+
+    3D hulls: qhull facets (outward winding). Flat (2D) hulls: the polygon fanned from its
+    first vertex, both windings so that it shows from either side. Lower dimensions and
+    fewer than 3 points give no triangle.
+
+    :param points: ``(k, 3)`` points (any unit).
+    :param flat_tol: singular values below ``flat_tol`` times the largest count as zero.
+    """
+    P = np.asarray(points, dtype=float).reshape(-1, 3)
+    if P.shape[0] < 3:
+        return np.zeros((0, 3, 3))
+    c = P.mean(axis=0)
+    _, s, vt = np.linalg.svd(P - c, full_matrices=False)
+    if s[0] == 0.0:
+        return np.zeros((0, 3, 3))
+    rank = int(np.sum(s > flat_tol * s[0]))
+    try:
+        if rank == 3:
+            hull = ConvexHull(P)
+            tri = P[hull.simplices]
+            normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+            flip = np.einsum('ij,ij->i', normal, tri[:, 0] - c) < 0.0
+            tri[flip] = tri[flip][:, ::-1]
+            return tri
+        if rank == 2:
+            Y = (P - c) @ vt[:2].T
+            ring = P[ConvexHull(Y).vertices]
+            fan = np.stack([np.repeat(ring[:1], len(ring) - 2, axis=0), ring[1:-1], ring[2:]],
+                           axis=1)
+            return np.concatenate([fan, fan[:, ::-1]])
+    except QhullError:
+        pass
+    return np.zeros((0, 3, 3))
+
+
+def force_slice(P: Polytope, tau: np.ndarray, *, interior: np.ndarray | None = None,
+                tol: float = 1e-9) -> np.ndarray:
+    """Return the vertices ``(k, 3)`` of the force slice of a 6D wrench polytope.
+
+    .. math:: S(\\tau) = \\{f \\in \\mathbb{R}^3 : [f; \\tau] \\in P\\}
+
+    with ``P = {w : A w <= b, w = o + U y}``. Writing ``w = o + U (y_0 + N z)`` with
+    ``y_0`` solving the moment rows ``U_\\tau y = \\tau - o_\\tau`` and ``N`` a basis of
+    their null space, ``S`` is the polytope ``{z : A U N z <= b - A (o + U y_0)}`` mapped to
+    forces; its vertices come from qhull's halfspace intersection (dimension of ``z`` >= 2),
+    a ratio test (1) or a membership test (0).
+
+    :param P: the wrench polytope [N, N.m], world-aligned axes about the CoM.
+    :param tau: the moment ``(3,)`` [N.m].
+    :param interior: optional wrench ``(6,)`` known to be strictly inside ``P`` with moment
+        ``tau`` (saves the Chebyshev-centre LP).
+    :param tol: residual and slack tolerance [N, N.m].
+    :return: the vertices [N]; ``(0, 3)`` when the slice is empty or qhull fails.
+    """
+    empty = np.zeros((0, 3))
+    if P.is_empty:
+        return empty
+    tau = np.asarray(tau, dtype=float)
+    o, U = P.hull_origin, P.hull_basis
+    Ut = U[3:]
+    y0, *_ = np.linalg.lstsq(Ut, tau - o[3:], rcond=None)
+    if np.linalg.norm(Ut @ y0 - (tau - o[3:])) > tol * max(1.0, np.linalg.norm(tau)):
+        return empty
+    _, s, vt = np.linalg.svd(Ut) if Ut.size else (None, np.zeros(0), np.zeros((0, 0)))
+    rank = int(np.sum(s > 1e-12 * max(1.0, s[0] if s.size else 1.0)))
+    N = vt[rank:].T if Ut.size else np.eye(U.shape[1])
+    base = o + U @ y0
+    G = P.A @ (U @ N)
+    h = P.b - P.A @ base
+    norms = np.linalg.norm(G, axis=1)
+    keep = norms > 1e-12
+    if np.any(h[~keep] < -tol):
+        return empty
+    G, h = G[keep] / norms[keep, None], h[keep] / norms[keep]
+    Uf = (U @ N)[:3]
+    d = N.shape[1]
+    if d == 0:
+        return base[None, :3] if np.all(h >= -tol) else empty
+    if d == 1:
+        g = G[:, 0]
+        hi = np.min(h[g > 0] / g[g > 0]) if np.any(g > 0) else np.inf
+        lo = np.max(h[g < 0] / g[g < 0]) if np.any(g < 0) else -np.inf
+        if not (np.isfinite(hi) and np.isfinite(lo)) or lo > hi + tol:
+            return empty
+        return base[:3] + np.outer([lo, hi], Uf[:, 0])
+    z0 = None
+    if interior is not None:
+        z0 = N.T @ (U.T @ (np.asarray(interior, dtype=float) - base))
+        if not np.all(G @ z0 < h - tol):
+            z0 = None
+    if z0 is None:
+        z0 = _chebyshev_centre(G, h, tol)
+        if z0 is None:
+            return empty
+    try:
+        hs = HalfspaceIntersection(np.hstack([G, -h[:, None]]), z0)
+    except (QhullError, ValueError):
+        return empty
+    Z = hs.intersections
+    Z = Z[np.all(np.isfinite(Z), axis=1)]
+    return base[:3] + Z @ Uf.T
+
+
+def _chebyshev_centre(G: np.ndarray, h: np.ndarray, tol: float) -> np.ndarray | None:
+    """Return the centre of the largest ball in ``{z : G z <= h}`` (unit rows), or None."""
+    d = G.shape[1]
+    c = np.zeros(d + 1)
+    c[-1] = -1.0
+    res = linprog(c, A_ub=np.hstack([G, np.ones((G.shape[0], 1))]), b_ub=h,
+                  bounds=[(None, None)] * d + [(0.0, None)], method='highs')
+    if res.status != 0 or res.x[-1] <= tol:
+        return None
+    return res.x[:d]
+
+
+# -- markers -------------------------------------------------------------------------------
+
+
+def _color(rgba: tuple[float, float, float, float]) -> ColorRGBA:
+    r, g, b, a = rgba
+    return ColorRGBA(r=r, g=g, b=b, a=a)
+
+
+def _points(X: np.ndarray) -> list[Point]:
+    return [Point(x=x, y=y, z=z) for x, y, z in np.asarray(X, dtype=float).reshape(-1, 3)
+            .tolist()]
+
+
+class _Builder:
+    """Collects markers with a common header and a frame transform x -> R x + t."""
+
+    def __init__(self, header: Header, R: np.ndarray, t: np.ndarray) -> None:
+        self.header, self.R, self.t = header, R, t
+        clear = Marker(header=header, action=Marker.DELETEALL)
+        self.markers: list[Marker] = [clear]
+
+    def to_frame(self, X: np.ndarray) -> np.ndarray:
+        return np.asarray(X, dtype=float) @ self.R.T + self.t
+
+    def add(self, ns: str, mid: int, mtype: int, rgba, *, points=None, position=None,
+            scale=(1.0, 1.0, 1.0), text: str = '') -> Marker:
+        m = Marker(header=self.header, ns=ns, id=mid, type=mtype, action=Marker.ADD)
+        m.pose.orientation.w = 1.0
+        if position is not None:
+            x, y, z = self.to_frame(position).tolist()
+            m.pose.position.x, m.pose.position.y, m.pose.position.z = x, y, z
+        m.scale.x, m.scale.y, m.scale.z = (float(v) for v in scale)
+        m.color = _color(rgba)
+        m.lifetime = Duration()
+        if points is not None:
+            m.points = _points(self.to_frame(points))
+        m.text = text
+        self.markers.append(m)
+        return m
+
+
+def build_markers(result: FeasibilityResult, header: Header, *,
+                  style: MarkerStyle = MarkerStyle(), fws: WrenchSetResult | None = None,
+                  pyramid_sides: int = 4, rotation: np.ndarray | None = None,
+                  translation: np.ndarray | None = None, status_text: str = ''
+                  ) -> MarkerArray:
+    """Return the markers of one evaluation (see the module docstring).
+
+    :param result: the evaluation (wrench [N, N.m] and leg polytopes [N], CoM-centred
+        world-aligned frame).
+    :param header: stamp of the answered joint state; frame_id the markers' frame.
+    :param style: scales and sizes.
+    :param fws: the latest FWS result for the margin text (default ``result.fws``).
+    :param pyramid_sides: sides of the drawn friction pyramids.
+    :param rotation: ``(3, 3)`` rotation from the CoM-centred world-aligned frame to the
+        marker frame (default identity).
+    :param translation: ``(3,)`` position of the CoM in the marker frame [m] (default 0).
+    :param status_text: an extra text line (warnings), shown under the margins.
+    """
+    R = np.eye(3) if rotation is None else np.asarray(rotation, dtype=float)
+    t = np.zeros(3) if translation is None else np.asarray(translation, dtype=float)
+    out = _Builder(header, R, t)
+    s = style.force_scale
+    tag = f'[{s:g} m/N]'
+    legs = list(result.legs.values())
+    if legs:
+        normals = np.array([leg.normal for leg in legs])
+        mus = np.array([leg.friction_coefficient for leg in legs])
+        rays, _ = friction_pyramids(normals, mus, pyramid_sides)
+    for k, leg in enumerate(legs):
+        p = leg.position
+        tri = hull_triangles(leg.force_polytope.vertices)
+        if tri.size:
+            out.add(f'force_polytope {tag}', k, Marker.TRIANGLE_LIST,
+                    _COLORS['force_polytope'], points=p + s * tri)
+        tri = hull_triangles(leg.friction_polytope.vertices)
+        if tri.size:
+            out.add(f'friction_polytope {tag}', k, Marker.TRIANGLE_LIST,
+                    _COLORS['friction_polytope'], points=p + s * tri)
+        V = leg.force_polytope.vertices
+        height = float(np.max(V @ leg.normal)) if V.size else 0.0
+        if height > 0.0:
+            ring = rays[k] * (height / (rays[k] @ leg.normal))[:, None]
+            sides = np.stack([np.zeros_like(ring), ring, np.roll(ring, -1, axis=0)], axis=1)
+            sides = np.concatenate([sides, sides[:, ::-1]])
+            out.add(f'friction_pyramid {tag}', k, Marker.TRIANGLE_LIST,
+                    _COLORS['friction_pyramid'], points=p + s * sides)
+    w = result.wrench
+    d = style.arrow_diameter
+    if np.linalg.norm(w[:3]) > 0.0:
+        out.add(f'gravito_inertial_wrench {tag}', 0, Marker.ARROW, _COLORS['wrench'],
+                points=np.array([np.zeros(3), s * w[:3]]), scale=(d, 2 * d, 3 * d))
+    if np.linalg.norm(w[3:]) * style.moment_scale > 1e-4:
+        out.add(f'gravito_inertial_moment [{style.moment_scale:g} m/(N.m)]', 0,
+                Marker.ARROW, _COLORS['moment'],
+                points=np.array([np.zeros(3), style.moment_scale * w[3:]]),
+                scale=(d / 2, d, 1.5 * d))
+    fwp = result.fwp
+    tri = hull_triangles(force_slice(fwp.polytope, w[3:], interior=w))
+    if tri.size:
+        out.add(f'fwp_force_slice {tag}', 0, Marker.TRIANGLE_LIST, _COLORS['fwp_force_slice'],
+                points=s * tri)
+    c = style.com_diameter
+    out.add('com', 0, Marker.SPHERE, _COLORS['com'], position=np.zeros(3), scale=(c, c, c))
+    if legs:
+        out.add('stance_feet', 0, Marker.SPHERE_LIST, _COLORS['com'],
+                points=np.array([leg.position for leg in legs]), scale=(c, c, c))
+    fws = result.fws if fws is None else fws
+    lines = [(name.upper(), r) for name, r in (('awp', result.awp), ('fwp', fwp),
+                                               ('fws', fws))]
+    _margin_texts(out, lines, style, status_text)
+    return MarkerArray(markers=out.markers)
+
+
+def _margin_texts(out: _Builder, lines, style: MarkerStyle, status_text: str) -> None:
+    """Add one TEXT_VIEW_FACING per margin above the CoM, coloured by its sign."""
+    h = style.text_height
+    top = 0.45
+    for i, (name, r) in enumerate(lines):
+        if r is None or not math.isfinite(r.margin):
+            text, rgba = f'{name} margin: n/a', _COLORS['unknown']
+        else:
+            inside = r.feasible
+            text = f'{name} margin {r.margin:+.1f} (dim {r.dimension})'
+            rgba = _COLORS['positive' if inside else 'negative']
+        out.add('margins', i, Marker.TEXT_VIEW_FACING, rgba,
+                position=np.array([0.0, 0.0, top - 1.4 * h * i]), scale=(0.0, 0.0, h),
+                text=text)
+    if status_text:
+        out.add('margins', len(lines), Marker.TEXT_VIEW_FACING, _COLORS['unknown'],
+                position=np.array([0.0, 0.0, top - 1.4 * h * len(lines)]),
+                scale=(0.0, 0.0, 0.8 * h), text=status_text[:200])
+
+
+def error_markers(header: Header, reason: str, *, style: MarkerStyle = MarkerStyle()
+                  ) -> MarkerArray:
+    """Return the markers of a message that was not evaluated: a red text with the reason."""
+    out = _Builder(header, np.eye(3), np.zeros(3))
+    out.add('margins', 0, Marker.TEXT_VIEW_FACING, _COLORS['negative'],
+            position=np.array([0.0, 0.0, 0.45]), scale=(0.0, 0.0, style.text_height),
+            text=f'not evaluated: {reason[:200]}')
+    return MarkerArray(markers=out.markers)

@@ -1,0 +1,272 @@
+"""The message-level pipeline shared by ``awp_node`` and the offline replay.
+
+Messages in, messages out, no rclpy node inside: feed :meth:`Pipeline.on_contacts`,
+:meth:`Pipeline.on_imu` and :meth:`Pipeline.on_joint_state` the input messages in arrival
+(or recorded) order and every joint-state message returns a :class:`Cycle` holding the
+outputs that answer it. The node publishes them; the replay writes them to a bag; both get
+the same messages because every decision here depends on message stamps only, never on
+the wall clock:
+
+- one evaluation per joint-state message, with the ContactState (and Imu when ``use_imu``)
+  that was current at its stamp: the newest received one whose stamp is not later than the
+  joint state's (else the earliest received, the closest). So a node that lags and has
+  already taken newer contacts or imu messages from its queues pairs them as the replay of
+  the recorded order does. A report for every message, errors included
+  (``STATUS_INVALID_INPUT`` with the reason, ``STATUS_STALE_INPUT`` when the contacts/imu
+  stamp is more than ``stale_timeout_s`` older (or newer: clocks that disagree) than the
+  joint state's or none arrived yet, ``STATUS_ERROR`` for an internal failure; reasons are
+  cut to ``MAX_REASON_CHARS``). Joints the model does not have are ignored with a warning
+  (an arm's joints in the robot's joint_states); no foot in contact is evaluated (every
+  set is {0}) with a warning;
+- ``awp``, ``fwp``, ``leg_polytopes`` every evaluated cycle; the FWS (H-rep, directional
+  and Euclidean margins) when ``fws_rate_hz`` says so by stamp (0 = every cycle) or the
+  stance set changed (which restarts the schedule: the next one comes a period later), the
+  reports carrying the latest FWS with its ``fws_stamp``;
+- ``markers`` throttled to ``marker_rate_hz`` by stamp (0 = never);
+- every output's ``header.stamp`` is the joint state's stamp; wrench data use the frame
+  ``wrench_frame_id`` (CoM origin, world-aligned axes), markers ``marker_frame_id`` ('' = the
+  wrench frame, or the URDF root link, e.g. ``base_link``, to overlay them on the robot).
+
+A stamp earlier than the previous joint state's restarts the throttles (a replay loop) and
+adds a warning to that report. Output messages other than the report are built on demand
+(:class:`Cycle` methods), so a node with no subscriber on a topic does not pay for it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+import time
+
+from awp_ros_msgs.msg import ContactState, FeasibilityReport
+from builtin_interfaces.msg import Time
+import numpy as np
+import pinocchio as pin
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Header
+
+from awp_ros.ros.conversions import error_report, report_msg, robot_state_from_msgs, stamp_to_ns
+from awp_ros.ros.cycle import Cycle
+from awp_ros.errors import AwpError, ConfigError, InputError
+from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+from awp_ros.evaluation.result import WrenchSetResult
+from awp_ros.ros.input_buffer import InputBuffer, stale_reason
+from awp_ros.ros.markers import MarkerStyle, quaternion_matrix
+from awp_ros.ros.pipeline_params import PipelineParams, ros_parameters
+from awp_ros.robot.config import RobotConfig
+
+__all__ = ['MAX_REASON_CHARS', 'Pipeline']
+
+_S = FeasibilityReport
+
+#: Longest ``status_message`` of a report (longer reasons are cut, marked with '...').
+MAX_REASON_CHARS = 1000
+
+
+class Pipeline:
+    """Turn input messages into output messages (see the module docstring).
+
+    :param config: the robot config (a name or YAML path is loaded by the evaluator).
+    :param params: the pipeline parameters.
+    :param input_buffer: contacts (and imu) messages kept for joint states that have not
+        caught up with them (the node passes its ``qos_depth``: a node lagging by that many
+        joint states still pairs each with the contacts current at its stamp).
+    :raises ConfigError, ModelError: bad config, unusable URDF, bad marker_frame_id.
+    """
+
+    def __init__(self, config: RobotConfig | str, params: PipelineParams | None = None, *,
+                 input_buffer: int = 10000) -> None:
+        self.evaluator = FeasibilityEvaluator(config)
+        self._joint_names = frozenset(self.evaluator.model.joint_names)
+        self.params = PipelineParams() if params is None else params
+        self._check_marker_frame(self.params)
+        self._contacts = InputBuffer(input_buffer)
+        self._imu = InputBuffer(input_buffer)
+        self._last_js_ns: int | None = None
+        self._last_fws_ns: int | None = None
+        self._last_marker_ns: int | None = None
+        self._latest_fws: WrenchSetResult | None = None
+        self._latest_fws_stamp: Time | None = None
+        self._latest_fws_stance: tuple | None = None
+
+    @classmethod
+    def from_parameters(cls, params: Mapping, *, robot: str | None = None) -> Pipeline:
+        """Build a pipeline from a parameters file's mapping (what the node reads).
+
+        The robot part comes from ``robot`` (a config name or path; default the mapping's
+        own ``robot`` key, else the mapping itself when it has ``robot_name``, else
+        ``hyq``), with ``robot_description`` (URDF XML) replacing its URDF when non-empty.
+        """
+        flat = ros_parameters(params)
+        name = robot if robot is not None else flat.get('robot') or None
+        if name is None and 'robot_name' in flat:
+            config = RobotConfig.from_dict(flat)
+        else:
+            from awp_ros.robot.config import load_config
+            config = load_config(name or 'hyq')
+        if flat.get('robot_description'):
+            config = replace(config, urdf=str(flat['robot_description']))
+        return cls(config, PipelineParams.from_dict(flat))
+
+    # -- configuration ---------------------------------------------------------------------
+
+    @property
+    def config(self) -> RobotConfig:
+        """Return the robot config in use."""
+        return self.evaluator.config
+
+    @property
+    def root_link(self) -> str:
+        """Return the URDF root link (the free flyer's child body), e.g. ``base_link``."""
+        model = self.evaluator.model.model
+        for frame in model.frames:
+            if frame.parentJoint == 1 and frame.type == pin.FrameType.BODY:
+                return frame.name
+        return ''
+
+    def set_config(self, config: RobotConfig) -> None:
+        """Use a new robot config from the next message on (rebuilds the evaluator).
+
+        :raises ConfigError, ModelError: the config is unusable (the old one stays).
+        """
+        evaluator = FeasibilityEvaluator(config)
+        old = self.evaluator
+        self.evaluator = evaluator
+        try:
+            self._check_marker_frame(self.params)
+        except ConfigError:
+            self.evaluator = old
+            raise
+        self._joint_names = frozenset(evaluator.model.joint_names)
+        self._latest_fws_stance = None
+
+    def set_params(self, params: PipelineParams) -> None:
+        """Use new pipeline parameters from the next message on.
+
+        :raises ConfigError: ``marker_frame_id`` is neither '' nor the wrench frame nor the
+            root link.
+        """
+        self._check_marker_frame(params)
+        self.params = params
+
+    def _check_marker_frame(self, params: PipelineParams) -> None:
+        frame = params.marker_frame_id
+        if frame not in ('', params.wrench_frame_id, self.root_link):
+            msg = (f"marker_frame_id must be '', the wrench frame "
+                   f'{params.wrench_frame_id!r} or the root link {self.root_link!r}; got '
+                   f'{frame!r}')
+            raise ConfigError(msg)
+
+    # -- inputs ----------------------------------------------------------------------------
+
+    def on_contacts(self, msg: ContactState) -> None:
+        """Keep a contact state for the joint states it precedes (validated with them)."""
+        self._contacts.add(msg)
+
+    def on_imu(self, msg: Imu) -> None:
+        """Keep an IMU message for the joint states it precedes (used when ``use_imu``)."""
+        self._imu.add(msg)
+
+    def on_joint_state(self, msg: JointState, notes: Sequence[str] = ()) -> Cycle:
+        """Evaluate one joint-state message and return its outputs.
+
+        :param notes: warnings of the caller about this message (e.g. messages lost
+            before it), put first in the report's ``status_message``.
+        """
+        t0 = time.perf_counter()
+        p = self.params
+        ns = stamp_to_ns(msg.header.stamp)
+        header = Header(stamp=msg.header.stamp, frame_id=p.wrench_frame_id)
+        notes = list(notes)
+        if self._last_js_ns is not None and ns < self._last_js_ns:
+            notes.append(f'joint_states stamp went back by {(self._last_js_ns - ns) * 1e-9:.6g}'
+                         ' s; throttles restarted')
+            self._last_fws_ns = self._last_marker_ns = None
+        self._last_js_ns = ns
+        markers_due = p.marker_rate_hz > 0.0 and _due(self._last_marker_ns, ns,
+                                                      p.marker_rate_hz)
+        if markers_due:
+            self._last_marker_ns = _advance(self._last_marker_ns, ns, p.marker_rate_hz)
+        result = None
+        fws_computed = False
+        R = np.eye(3)
+        contacts = self._contacts.pick(ns)
+        imu = self._imu.pick(ns) if p.use_imu else None
+        try:
+            inputs = [('contacts', contacts)] + ([('imu', imu)] if p.use_imu else [])
+            stale = stale_reason(ns, inputs, p.stale_timeout_s)
+            if stale:
+                report = error_report(header, _S.STATUS_STALE_INPUT,
+                                      '; '.join(notes + [stale]))
+            else:
+                state = robot_state_from_msgs(
+                    msg, contacts, imu, feet=self.evaluator.feet,
+                    use_velocities=p.use_joint_velocities, joint_names=self._joint_names,
+                    notes=notes)
+                result = self.evaluator.evaluate(state, fws=False)
+                if not result.stance:
+                    notes.append('no foot in contact: every wrench set is {0}, no wrench '
+                                 'but zero is feasible')
+                if p.use_imu:
+                    R = quaternion_matrix(state.base_orientation)
+                by_rate = p.fws_rate_hz == 0.0 or _due(self._last_fws_ns, ns, p.fws_rate_hz)
+                if by_rate or result.stance != self._latest_fws_stance:
+                    self.evaluator.add_fws(result)
+                    fws_computed = True
+                    # A stance change restarts the schedule: the FWS is never older than
+                    # one period, and not computed twice within one.
+                    self._last_fws_ns = _advance(self._last_fws_ns, ns, p.fws_rate_hz) \
+                        if by_rate else ns
+                    self._latest_fws = result.fws
+                    self._latest_fws_stamp = msg.header.stamp
+                    self._latest_fws_stance = result.stance
+                warnings = notes + result.warnings
+                status = _S.STATUS_WARNING if warnings else _S.STATUS_OK
+                report = report_msg(header, result, compute_time=0.0, fws=self._latest_fws,
+                                    fws_stamp=self._latest_fws_stamp, status=status,
+                                    status_message='; '.join(warnings))
+        except InputError as exc:
+            report = error_report(header, _S.STATUS_INVALID_INPUT, '; '.join(notes + [str(exc)]))
+            result = None
+        except AwpError as exc:
+            report = error_report(header, _S.STATUS_ERROR, f'{type(exc).__name__}: {exc}')
+            result = None
+        except Exception as exc:  # noqa: BLE001 -- a monitor must answer every message
+            report = error_report(header, _S.STATUS_ERROR,
+                                  f'internal error {type(exc).__name__}: {exc}')
+            result = None
+        if len(report.status_message) > MAX_REASON_CHARS:
+            report.status_message = report.status_message[:MAX_REASON_CHARS - 3] + '...'
+        report.compute_time = time.perf_counter() - t0
+        com = np.zeros(3) if result is None else result.com
+        marker_header = Header(stamp=msg.header.stamp,
+                               frame_id=p.marker_frame_id or p.wrench_frame_id)
+        if p.marker_frame_id in ('', p.wrench_frame_id):
+            frame = (np.eye(3), np.zeros(3))
+        else:  # the root link: x_base = R^T (com + x)
+            frame = (R.T, R.T @ com)
+        style = MarkerStyle(force_scale=p.marker_force_scale,
+                            moment_scale=p.marker_moment_scale)
+        return Cycle(header, report, result, fws_computed=fws_computed,
+                     markers_due=markers_due, marker_header=marker_header,
+                     marker_frame=frame, style=style, reference_point=R.T @ com,
+                     latest_fws=self._latest_fws, pyramid_sides=self.config.pyramid_sides)
+
+
+def _due(last_ns: int | None, ns: int, rate_hz: float) -> bool:
+    """Return whether a throttled output is due at stamp ``ns`` [ns] for ``rate_hz``."""
+    return last_ns is None or ns - last_ns >= int(round(1e9 / rate_hz))
+
+
+def _advance(last_ns: int | None, ns: int, rate_hz: float) -> int:
+    """Return the new reference stamp of a throttle that is due at ``ns``.
+
+    Steps by whole periods while ``ns`` is within one period of the schedule, so that the
+    average rate is ``rate_hz`` even when inputs do not fall on the period; restarts at
+    ``ns`` after a gap or with rate 0 (every cycle).
+    """
+    if last_ns is None or rate_hz <= 0.0:
+        return ns
+    period = int(round(1e9 / rate_hz))
+    nxt = last_ns + period
+    return nxt if ns - nxt < period else ns

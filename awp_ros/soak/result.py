@@ -1,0 +1,162 @@
+"""What a soak test measured: :class:`SoakResult`, its table, and the figures behind it.
+
+The ``fill_*`` functions turn the raw measurements of :func:`awp_ros.soak.soak.run_soak` (the
+monitor's CPU/RSS samples, report reception times, the node's diagnostics) into the
+result's fields.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+import threading
+
+import numpy as np
+
+__all__ = ['fill_node_diagnostics', 'fill_timeline', 'fill_usage', 'percentiles',
+           'SoakResult']
+
+
+@dataclass
+class SoakResult:
+    """What a soak measured (see :mod:`awp_ros.soak.soak`). Times [s] unless the key says ms."""
+
+    robot: str
+    rate_hz: float
+    duration_s: float
+    qos_depth: int
+    sent: int = 0
+    sent_rate_hz: float = float('nan')
+    reports: int = 0
+    missing: int = 0
+    duplicates: int = 0
+    unexpected: int = 0
+    status_counts: dict = field(default_factory=dict)
+    latency_ms: dict = field(default_factory=dict)
+    latency_after_warmup_ms: dict = field(default_factory=dict)
+    cpu_percent: dict = field(default_factory=dict)
+    rss_mb: dict = field(default_factory=dict)
+    rss_growth_percent: float = float('nan')
+    drain_s: float = 0.0
+    node_lost_total: int | None = None
+    node_missing_from_sequence: int | None = None
+    node_compute_p50_ms: float | None = None
+    driver: dict = field(default_factory=dict)
+    timeline: list = field(default_factory=list)
+    node_alive: bool = True
+    outputs: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """Return the result as JSON-ready builtins (without the timeline)."""
+        out = asdict(self)
+        out.pop('timeline')
+        return out
+
+    def table(self) -> str:
+        """Return the timeline and the summary as a text table."""
+        lines = [f'awp_node soak: {self.robot}, {self.rate_hz:g} Hz for {self.duration_s:g} s '
+                 f'(qos_depth {self.qos_depth})',
+                 f'{"t [s]":>7} {"reports/s":>10} {"latency p50 [ms]":>17} '
+                 f'{"latency p99 [ms]":>17} {"node CPU [%]":>13} {"node RSS [MB]":>14}']
+        for row in self.timeline:
+            lines.append(f'{row["t"]:7.1f} {row["reports_per_s"]:10.0f} '
+                         f'{row["latency_p50_ms"]:17.1f} {row["latency_p99_ms"]:17.1f} '
+                         f'{row["cpu_percent"]:13.0f} {row["rss_mb"]:14.1f}')
+        lat, cpu, rss = self.latency_ms, self.cpu_percent, self.rss_mb
+        warm = self.latency_after_warmup_ms
+        lines += [
+            f'sent {self.sent} joint states at {self.sent_rate_hz:.1f} Hz; reports '
+            f'{self.reports}; missing {self.missing}; duplicates {self.duplicates}; '
+            f'unexpected {self.unexpected}; statuses {self.status_counts}',
+            f'latency stamp -> report received [ms]: p50 {lat.get("p50", float("nan")):.1f}, '
+            f'p99 {lat.get("p99", float("nan")):.1f}, max {lat.get("max", float("nan")):.1f}'
+            f'; after warm-up p50 {warm.get("p50", float("nan")):.1f}, p99 '
+            f'{warm.get("p99", float("nan")):.1f}',
+            f'node CPU [% of one core] while driven: mean {cpu.get("mean", float("nan")):.0f}, '
+            f'max {cpu.get("max", float("nan")):.0f}; RSS [MB]: start '
+            f'{rss.get("start", float("nan")):.1f}, after warm-up '
+            f'{rss.get("warm", float("nan")):.1f}, end of drive '
+            f'{rss.get("end", float("nan")):.1f}, max {rss.get("max", float("nan")):.1f}; '
+            f'growth after warm-up {self.rss_growth_percent:.2f} %',
+            f'last report {self.drain_s:.2f} s after the last joint state; the node counted '
+            f'{self.node_missing_from_sequence} joint states missing from the sequence and '
+            f'{self.node_lost_total} lost (DDS events); its compute time p50 '
+            f'{self.node_compute_p50_ms} ms',
+        ]
+        if self.outputs:
+            lines.append('other outputs received (subscribed with --subscribe): ' + ', '.join(
+                f'{name} {count}' for name, count in self.outputs.items()))
+        return '\n'.join(lines)
+
+
+def percentiles(x: np.ndarray) -> dict:
+    if x.size == 0:
+        return {}
+    p50, p99 = np.percentile(x, [50, 99])
+    return {'p50': float(p50), 'p99': float(p99), 'max': float(x.max())}
+
+
+def fill_usage(result: SoakResult, s: np.ndarray, t_start: float, t_end: float,
+           warmup_s: float) -> None:
+    """Fill CPU and RSS figures from the monitor's samples (drive window only)."""
+    if len(s) < 2:
+        return
+    drive = s[(s[:, 0] >= t_start) & (s[:, 0] <= t_end)]
+    if len(drive) >= 2:
+        cpu = np.diff(drive[:, 1]) / np.diff(drive[:, 0]) * 100.0
+        result.cpu_percent = {'mean': float((drive[-1, 1] - drive[0, 1])
+                                            / (drive[-1, 0] - drive[0, 0]) * 100.0),
+                              'max': float(cpu.max())}
+    mb = s[:, 2] / 2**20
+    i_warm = int(np.searchsorted(s[:, 0], t_start + warmup_s))
+    i_end = int(np.searchsorted(s[:, 0], t_end, side='right')) - 1
+    i_warm = min(i_warm, len(s) - 1)
+    i_end = max(i_end, i_warm)
+    result.rss_mb = {'start': float(mb[0]), 'warm': float(mb[i_warm]),
+                     'end': float(mb[i_end]), 'max': float(mb.max())}
+    result.rss_growth_percent = float((mb[i_end] / mb[i_warm] - 1.0) * 100.0)
+
+
+def fill_timeline(result: SoakResult, s: np.ndarray, t_start: float, wall0_ns: int,
+              rcv: np.ndarray, latency: np.ndarray, step: float) -> None:
+    """Fill the table rows, one per ``step`` [s] from the drive's start to the last report.
+
+    ``t_start`` is the start on the monitor's clock, ``wall0_ns`` on the wall clock.
+    """
+    if len(s) < 2:
+        return
+    t_rcv = (rcv - wall0_ns) * 1e-9
+    t_last = float(t_rcv.max()) if t_rcv.size else s[-1, 0] - t_start
+    edges = np.arange(0.0, t_last + step, step)
+    t_s = s[:, 0] - t_start
+    for a, b in zip(edges[:-1], edges[1:]):
+        sel = (t_rcv >= a) & (t_rcv < b)
+        lat = latency[sel]
+        inside = t_s[0] <= a and b <= t_s[-1]
+        cpu = float((np.interp(b, t_s, s[:, 1]) - np.interp(a, t_s, s[:, 1])) / step * 100.0) \
+            if inside else float('nan')
+        rss = float(np.interp(b, t_s, s[:, 2]) / 2**20) if inside else float('nan')
+        result.timeline.append({
+            't': float(b), 'reports_per_s': float(sel.sum() / step),
+            'latency_p50_ms': float(np.percentile(lat, 50)) if lat.size else float('nan'),
+            'latency_p99_ms': float(np.percentile(lat, 99)) if lat.size else float('nan'),
+            'cpu_percent': cpu, 'rss_mb': rss})
+
+
+def fill_node_diagnostics(result: SoakResult, diag: list, lock: threading.Lock) -> None:
+    """Take the node's own 'lost' count and compute-time p50 from its last diagnostics."""
+    with lock:
+        arrays = list(diag)
+    lost, gaps, p50 = None, None, []
+    for arr in arrays:
+        for st in arr.status:
+            values = {kv.key: kv.value for kv in st.values}
+            if st.name.endswith(': inputs'):
+                lost = sum(int(v) for k, v in values.items() if k.endswith('lost (total)'))
+                gaps = int(values.get('joint_states sequence gaps (total)', 0))
+            elif st.name.endswith(': evaluation'):
+                x = float(values.get('compute time p50 [ms]', 'nan'))
+                if np.isfinite(x):
+                    p50.append(x)
+    result.node_lost_total = lost
+    result.node_missing_from_sequence = gaps
+    result.node_compute_p50_ms = round(float(np.median(p50)), 3) if p50 else None

@@ -1,0 +1,249 @@
+"""The actuation wrench polytope (AWP) and the feasible wrench polytope (FWP) in R^6.
+
+Frames: world-aligned axes (REP 103), origin at the robot's CoM. Foot positions p_k [m]
+relative to the CoM; contact forces f_k [N] exerted by the ground on the robot; wrenches
+w = [f; tau] [N, N.m] about the CoM.
+
+Equations (seed eqs. 1-3 and its Sec. on the FWP):
+
+    (1) lift: L_k = [I_3; [p_k]x] (6 x 3), w = L_k f = [f; p_k x f];
+    (2) a 3-joint leg's force polytope is a parallelepiped c_k + H_k [-1, 1]^3 (seed eq. 1
+        over the torque box), so AWP = sum_k L_k (c_k + H_k [-1, 1]^3) is the zonotope with
+        centre sum_k L_k c_k and the 3K generators L_k H_k (zonotope.py);
+    (3) FWP = AWP cap CWC: the H-reps are stacked (contact_wrench_cone.py), both expressed in
+        the common affine hull. For full-dimensional leg polytopes and pyramids both hulls are
+        the subspace sum_k L_k R^3 (dimension 0, 3, 5, 6, 6 for 0..4 legs).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.optimize import linprog
+
+from awp_ros.errors import InputError
+from awp_ros.geometry.linalg import cross3
+from awp_ros.geometry.polytope import Polytope
+from awp_ros.geometry.zonotope import zonotope
+
+__all__ = ['actuation_wrench_polytope', 'feasible_wrench_polytope', 'lift', 'lift_matrices',
+           'lift_points']
+
+
+def lift(p: np.ndarray) -> np.ndarray:
+    """Return the lift matrix of a foot position, eq. (1).
+
+    .. math:: L = \\begin{bmatrix} I_3 \\\\ [p]_\\times \\end{bmatrix}, \\quad
+              L f = [f; p \\times f]
+
+    :param p: foot position ``(3,)`` [m] relative to the CoM, world axes.
+    :return: array ``(6, 3)``.
+    """
+    return lift_matrices(np.reshape(p, (1, 3)))[0]
+
+
+def lift_matrices(positions: np.ndarray) -> np.ndarray:
+    """Return the lifts ``L_k = [I_3; [p_k]_x]`` of shape (K, 6, 3), eq. (1), batched.
+
+    :param positions: (K, 3) feet relative to the CoM [m], world-aligned axes.
+    """
+    p = np.asarray(positions, dtype=float)
+    K = p.shape[0]
+    L = np.zeros((K, 6, 3))
+    L[:, 0, 0] = L[:, 1, 1] = L[:, 2, 2] = 1.0
+    L[:, 3, 1], L[:, 3, 2] = -p[:, 2], p[:, 1]
+    L[:, 4, 0], L[:, 4, 2] = p[:, 2], -p[:, 0]
+    L[:, 5, 0], L[:, 5, 1] = -p[:, 1], p[:, 0]
+    return L
+
+
+def lift_points(positions: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """Return ``L_k v`` for per-leg 3-vectors, batched: ``(K, ..., 3) -> (K, ..., 6)``, eq. (1).
+
+    :param positions: ``(K, 3)`` [m]; :param vectors: ``(K, ..., 3)`` (forces [N]).
+    """
+    P = np.asarray(positions, dtype=float)
+    V = np.asarray(vectors, dtype=float)
+    P = P.reshape(P.shape[:1] + (1,) * (V.ndim - 2) + (3,))
+    return np.concatenate([V, cross3(P, V)], axis=-1)
+
+
+def actuation_wrench_polytope(positions: np.ndarray, centers: np.ndarray,
+                              generators: np.ndarray, *, with_vertices: bool = False,
+                              **zonotope_tols: float) -> Polytope:
+    """Return the AWP of 3-joint legs as an exact zonotope H-rep, eq. (2).
+
+    .. math:: \\mathrm{AWP} = \\bigoplus_k L_k (c_k + H_k [-1, 1]^3)
+              = \\textstyle\\sum_k L_k c_k + [L_1 H_1, \\dots, L_K H_K] [-1, 1]^{3K}
+
+    :param positions: stance foot positions ``(K, 3)`` [m] relative to the CoM, world axes.
+    :param centers: force-polytope centres ``(K, 3)`` [N], world axes.
+    :param generators: ``(K, 3, 3)`` [N]: ``generators[k][:, j]`` is the j-th half-edge of leg
+        k's parallelepiped (``J^{-T} diag((tau_max - tau_min) / 2)``; zero or dependent
+        columns allowed for singular legs).
+    :param with_vertices: also enumerate the 6D vertices (slow, off in the hot path).
+    :param zonotope_tols: tolerances forwarded to :func:`awp_ros.geometry.zonotope.zonotope`.
+    :return: the AWP (``{0}`` for K = 0), ``meta['kind'] = 'zonotope'``.
+    :raises InputError: on bad shapes or non-finite values.
+    """
+    P, C, H = _check_legs(positions, centers, generators)
+    K = P.shape[0]
+    if K == 0:
+        return zonotope(np.zeros(6), np.zeros((6, 0)), with_vertices=with_vertices)
+    # One lift for the centre and the three generators of every leg: (K, 4, 6).
+    lifted = lift_points(P, np.concatenate([C[:, None, :], H.transpose(0, 2, 1)], axis=1))
+    center = np.sum(lifted[:, 0, :], axis=0)
+    G = lifted[:, 1:, :].reshape(3 * K, 6).T
+    return zonotope(center, G, with_vertices=with_vertices, **zonotope_tols)
+
+
+def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 1e-9,
+                             interior_tol: float = 1e-9) -> Polytope:
+    """Return the FWP = AWP cap CWC as a stacked H-rep in the common affine hull, eq. (3).
+
+    .. math:: \\mathrm{FWP} = \\{w \\in \\mathrm{aff}: A_{awp} w \\le b_{awp},\\;
+              A_{cwc} w \\le 0\\}
+
+    Rows of both sets are projected on the intersection of the two affine hulls (they are
+    equal, and nothing is projected, when leg polytopes and pyramids are full-dimensional)
+    and re-normalised. When the hulls coincide, the intersection has an interior in the hull
+    if the AWP centre (a zonotope's) lies strictly inside the CWC or 0 strictly inside the
+    AWP (cheap tests, the usual case); otherwise a Chebyshev-ball LP decides:
+    ``meta['degenerate'] = True`` when the largest inscribed ball has radius <=
+    ``interior_tol`` (touching sets: the reported dimension is then that of the hull, an
+    upper bound), empty when the LP shows the intersection is empty.
+
+    :param awp: the AWP (any Polytope with a complete H-rep).
+    :param cwc: the CWC (``b = 0``, a cone).
+    :param hull_tol: distance under which the two hulls coincide / a point is in a hull.
+    :param interior_tol: inscribed-ball radius [N, N.m] under which the set is degenerate.
+    :return: the FWP; ``meta['source']`` is 0 for rows from the AWP, 1 from the CWC;
+        ``meta['kind'] = 'intersection'``. Vertices are not enumerated.
+    """
+    n = awp.ambient_dim
+    if awp.is_empty or cwc.is_empty:
+        return Polytope.empty(n)
+    if awp.dimension == 0 or cwc.dimension == 0:
+        return _point_intersection(awp, cwc, hull_tol)
+    origin, U, same = _hull_intersection(awp, cwc, hull_tol)
+    if U is None:
+        return Polytope.empty(n)
+    if same:
+        A1, b1, A2, b2 = awp.A, awp.b, cwc.A, cwc.b
+    else:
+        A1, b1 = _restrict(awp, origin, U, hull_tol)
+        A2, b2 = _restrict(cwc, origin, U, hull_tol)
+        if A1 is None or A2 is None:
+            return Polytope.empty(n)
+    A = np.vstack([A1, A2])
+    b = np.concatenate([b1, b2])
+    source = np.concatenate([np.zeros(A1.shape[0], dtype=np.int8),
+                             np.ones(A2.shape[0], dtype=np.int8)])
+    meta = {'kind': 'intersection', 'source': source, 'degenerate': False}
+    # A zonotope's centre is in its relative interior; the apex 0 of the CWC is in the CWC.
+    center_test = same and awp.meta.get('kind') == 'zonotope'
+    if not ((center_test and _strictly_inside(A2, b2, awp.hull_origin, interior_tol))
+            or (same and _strictly_inside(A1, b1, np.zeros(n), interior_tol))):
+        radius = _chebyshev_radius(A @ U, b - A @ origin)
+        if radius is None or radius < -interior_tol:
+            return Polytope.empty(n)
+        meta['degenerate'] = radius <= interior_tol
+    return Polytope(U.shape[1], np.zeros((0, n)), A, b, origin, U, meta)
+
+
+def _check_legs(positions: np.ndarray, centers: np.ndarray,
+                generators: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return float arrays ``(K, 3)``, ``(K, 3)``, ``(K, 3, 3)`` or raise InputError."""
+    P = np.asarray(positions, dtype=float)
+    C = np.asarray(centers, dtype=float)
+    H = np.asarray(generators, dtype=float)
+    if P.size == 0 and C.size == 0 and H.size == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3)), np.zeros((0, 3, 3))
+    K = P.shape[0] if P.ndim == 2 else -1
+    if P.shape != (K, 3) or C.shape != (K, 3) or H.shape != (K, 3, 3):
+        msg = (f'AWP needs positions (K, 3), centers (K, 3), generators (K, 3, 3); got '
+               f'{P.shape}, {C.shape}, {H.shape}')
+        raise InputError(msg)
+    for name, arr in (('positions', P), ('centers', C), ('generators', H)):
+        if not np.all(np.isfinite(arr)):
+            msg = f'AWP {name} must be finite; got {arr.tolist()}'
+            raise InputError(msg)
+    return P, C, H
+
+
+def _point_intersection(awp: Polytope, cwc: Polytope, tol: float) -> Polytope:
+    """Return the intersection when one set is a single point."""
+    n = awp.ambient_dim
+    point, other = (awp, cwc) if awp.dimension == 0 else (cwc, awp)
+    x = point.hull_origin
+    scale = max(1.0, float(np.max(np.abs(x))))
+    if not other.contains(x, tol=tol * scale):
+        return Polytope.empty(n)
+    return Polytope(0, x[None, :].copy(), np.zeros((0, n)), np.zeros(0), x.copy(),
+                    np.zeros((n, 0)), {'kind': 'intersection', 'source': np.zeros(0, np.int8),
+                                       'degenerate': False})
+
+
+def _hull_intersection(awp: Polytope, cwc: Polytope,
+                       tol: float) -> tuple[np.ndarray, np.ndarray | None, bool]:
+    """Return ``(origin, basis, same)`` of aff(AWP) cap aff(CWC).
+
+    ``basis`` is None when the hulls miss each other; ``same`` when they coincide.
+    """
+    U1, o1, U2, o2 = awp.hull_basis, awp.hull_origin, cwc.hull_basis, cwc.hull_origin
+    if U1.shape[1] == U1.shape[0] and U2.shape[1] == U2.shape[0]:
+        return o1, U1, True                       # both full-dimensional: the whole space
+    scale = max(1.0, float(np.max(np.abs(o1))))
+    if U1.shape[1] == U2.shape[1]:
+        d = o1 - o2
+        same = (np.linalg.norm(U2 - U1 @ (U1.T @ U2)) <= tol * U2.shape[1]
+                and np.linalg.norm(d - U2 @ (U2.T @ d)) <= tol * scale)
+        if same:
+            return o1, U1, True
+    E1, e1 = awp.equalities
+    E2, e2 = cwc.equalities
+    E = np.vstack([E1, E2])
+    e = np.concatenate([e1, e2])
+    x, *_ = np.linalg.lstsq(E, e, rcond=None)
+    if np.linalg.norm(E @ x - e) > tol * scale:
+        return x, None, False
+    _, s, vt = np.linalg.svd(E)
+    rank = int(np.sum(s > tol * max(1.0, s[0] if s.size else 1.0)))
+    return x, vt[rank:].T, False
+
+
+def _restrict(P: Polytope, origin: np.ndarray, U: np.ndarray,
+              tol: float) -> tuple[np.ndarray | None, np.ndarray]:
+    """Return P's rows restricted to the hull ``origin + span U``, unit rows in that span."""
+    Ar = P.A @ U
+    norms = np.linalg.norm(Ar, axis=1)
+    rhs = P.b - P.A @ origin
+    const = norms <= tol
+    if np.any(const & (rhs < -tol * max(1.0, float(np.max(np.abs(P.b), initial=0.0))))):
+        return None, np.zeros(0)
+    Ar = Ar[~const] / norms[~const, None]
+    rhs = rhs[~const] / norms[~const]
+    A = Ar @ U.T
+    return A, rhs + A @ origin
+
+
+def _strictly_inside(A: np.ndarray, b: np.ndarray, x: np.ndarray, tol: float) -> bool:
+    """Return True when ``x`` satisfies every row with slack above ``tol``."""
+    return bool(A.shape[0] == 0 or np.min(b - A @ x) > tol)
+
+
+def _chebyshev_radius(A_r: np.ndarray, b_r: np.ndarray) -> float | None:
+    """Return the largest inscribed-ball radius of ``{y : A_r y <= b_r}`` (may be < 0).
+
+    Rows are normalised in hull coordinates; the radius is capped at 1 (only its sign and
+    smallness matter). None when the LP fails.
+    """
+    norms = np.linalg.norm(A_r, axis=1)
+    r = A_r.shape[1]
+    c = np.zeros(r + 1)
+    c[-1] = -1.0
+    A_ub = np.hstack([A_r, norms[:, None]])
+    bounds = [(None, None)] * r + [(None, 1.0)]
+    res = linprog(c, A_ub=A_ub, b_ub=b_r, bounds=bounds, method='highs')
+    if res.status != 0:
+        return None
+    return float(res.x[-1])

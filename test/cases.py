@@ -1,0 +1,147 @@
+"""Test cases shared by several test modules (hand-computable robots, HyQ-like legs, messages).
+
+Test modules import it as ``from cases import ...`` (``test/conftest.py`` puts this folder on
+``sys.path``).
+"""
+
+from __future__ import annotations
+
+from itertools import combinations
+
+from awp_ros_msgs.msg import ContactState
+import numpy as np
+from sensor_msgs.msg import JointState
+
+from awp_ros.wrench.wrench_polytope import lift_matrices
+
+# -- a toy robot whose legs have a diagonal Jacobian ------------------------------------------
+
+G = 9.81
+M_BASE, M_FOOT = 10.0, 1.0
+EFFORT = (10.0, 20.0, 30.0)
+
+
+def toy_urdf(efforts=EFFORT, legs=(('a', 0.0), ('b', 1.0))) -> str:
+    """Return a URDF whose legs have J = diag(0.5, 0.4, 0.3) at q = 0 (world axes).
+
+    Leg ``name`` at x offset ``dx``: joint 1 (axis z) at (dx, 0.5, 0), joint 2 (axis x) at
+    (dx, 0, 0.4), joint 3 (axis y) at (dx + 0.3, 0, 0), foot (and a 1 kg point mass) at
+    (dx, 0, 0). A revolute column is axis x (foot - joint): z x (-0.5 y) = 0.5 x,
+    x x (-0.4 z) = 0.4 y, y x (-0.3 x) = 0.3 z.
+    """
+    def inertial(mass, xyz):
+        return (f'<inertial><origin xyz="{xyz}"/><mass value="{mass}"/>'
+                '<inertia ixx="1e-3" iyy="1e-3" izz="1e-3" ixy="0" ixz="0" iyz="0"/>'
+                '</inertial>')
+    parts = ['<robot name="toy">', f'<link name="base">{inertial(M_BASE, "0 0 0.5")}</link>']
+    for name, dx in legs:
+        e1, e2, e3 = efforts
+        parts += [
+            f'<link name="{name}_l1"/><link name="{name}_l2"/>',
+            f'<link name="{name}_l3">{inertial(M_FOOT, "-0.3 0 0")}</link>',
+            f'<link name="{name}_foot"/>',
+            f'<joint name="{name}_j1" type="revolute"><parent link="base"/>'
+            f'<child link="{name}_l1"/><origin xyz="{dx} 0.5 0"/><axis xyz="0 0 1"/>'
+            f'<limit effort="{e1}" lower="-3" upper="3" velocity="10"/></joint>',
+            f'<joint name="{name}_j2" type="revolute"><parent link="{name}_l1"/>'
+            f'<child link="{name}_l2"/><origin xyz="0 -0.5 0.4"/><axis xyz="1 0 0"/>'
+            f'<limit effort="{e2}" lower="-3" upper="3" velocity="10"/></joint>',
+            f'<joint name="{name}_j3" type="revolute"><parent link="{name}_l2"/>'
+            f'<child link="{name}_l3"/><origin xyz="0.3 0 -0.4"/><axis xyz="0 1 0"/>'
+            f'<limit effort="{e3}" lower="-3" upper="3" velocity="10"/></joint>',
+            f'<joint name="{name}_fj" type="fixed"><parent link="{name}_l3"/>'
+            f'<child link="{name}_foot"/><origin xyz="-0.3 0 0"/></joint>',
+        ]
+    parts.append('</robot>')
+    return ''.join(parts)
+
+
+
+# -- HyQ-like friction-bounded leg polytopes ---------------------------------------------------
+
+HYQ_FEET = np.array([[0.37, 0.33, -0.55], [0.37, -0.33, -0.55],
+                     [-0.37, 0.33, -0.55], [-0.37, -0.33, -0.55]])
+
+
+# -- test data: parallelepipeds clipped by the mu = 0.7 pyramid (written here, on purpose) --
+
+def clipped_parallelepiped(centre, generators, mu=0.7, normal=(0.0, 0.0, 1.0), sides=4):
+    """Vertices of {c + G t, |t|_inf <= 1} & pyramid & {n.f >= 0}, brute force on triples."""
+    G = np.asarray(generators, dtype=float)
+    Ginv = np.linalg.inv(G)
+    rows = [Ginv, -Ginv]
+    offs = [1.0 + Ginv @ centre, 1.0 - Ginv @ centre]
+    n = np.asarray(normal, dtype=float)
+    n /= np.linalg.norm(n)
+    x = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.99 else np.array([0.0, 1.0, 0.0])
+    t1 = x - (x @ n) * n
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(n, t1)
+    th = 2 * np.pi * np.arange(sides) / sides
+    rows.append(np.cos(th)[:, None] * t1 + np.sin(th)[:, None] * t2
+                - mu * np.cos(np.pi / sides) * n)
+    offs.append(np.zeros(sides))
+    rows.append(-n[None, :])
+    offs.append(np.zeros(1))
+    A, b = np.vstack(rows), np.concatenate(offs)
+    A, b = A / np.linalg.norm(A, axis=1)[:, None], b / np.linalg.norm(A, axis=1)
+    V = []
+    for i, j, k in combinations(range(len(A)), 3):
+        M = A[[i, j, k]]
+        if abs(np.linalg.det(M)) < 1e-9:
+            continue
+        v = np.linalg.solve(M, b[[i, j, k]])
+        if np.all(A @ v <= b + 1e-7 * (1.0 + np.abs(b))):
+            V.append(v)
+    V = np.array(V).reshape(-1, 3)
+    keep = [i for i in range(len(V)) if all(np.linalg.norm(V[i] - V[j]) > 1e-6
+                                            for j in range(i))]
+    return V[keep]
+
+
+def hyq_like_leg(rng) -> np.ndarray:
+    """A HyQ-like friction-bounded polytope: generators of 300-2000 N, centre near 0."""
+    while True:
+        R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        G = R * rng.uniform(300.0, 2000.0, size=3)
+        if abs(np.linalg.det(G)) > 1e6:
+            break
+    centre = rng.uniform(-80.0, 80.0, size=3) + [0.0, 0.0, 100.0]
+    return clipped_parallelepiped(centre, G)
+
+
+def hyq_feet(rng, K) -> np.ndarray:
+    """K feet near HyQ's (a fifth one, a hexapod's middle leg, near the body's side)."""
+    feet = np.vstack([HYQ_FEET, [[0.0, 0.4, -0.55], [0.0, -0.4, -0.55]]])
+    return feet[:K] + rng.uniform(-0.05, 0.05, size=(K, 3))
+
+
+def vertex_sums(positions, vertex_sets) -> np.ndarray:
+    pts = np.zeros((1, 6))
+    for Lk, V in zip(lift_matrices(positions), vertex_sets):
+        pts = (pts[:, None, :] + (V @ Lk.T)[None, :, :]).reshape(-1, 6)
+    return pts
+
+
+
+# -- HyQ input messages ------------------------------------------------------------------------
+
+FEET = ['lf_foot', 'rf_foot', 'lh_foot', 'rh_foot']
+T0 = 1_700_000_000 * 10**9
+
+
+
+def stamp(msg, ns: int):
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
+    return msg
+
+
+def joints_msg(evaluator, ns: int, dq: float = 0.0) -> JointState:
+    js = JointState(name=list(evaluator.model.joint_names),
+                    position=(evaluator.model.standing_q + dq).tolist())
+    return stamp(js, ns)
+
+
+def contacts_msg(ns: int, stance=FEET, mu=()) -> ContactState:
+    return stamp(ContactState(names=FEET, in_contact=[f in stance for f in FEET],
+                               friction_coefficients=list(mu)), ns)

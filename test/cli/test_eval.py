@@ -1,0 +1,126 @@
+"""Tests of the awp_eval and awp_bench command-line tools."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+from pathlib import Path
+import subprocess
+import sys
+
+import pytest
+
+from awp_ros.cli import bench as bench_cli, eval as eval_cli
+from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def run_module(module, args, stdin=''):
+    env = dict(os.environ)
+    env['PYTHONPATH'] = os.pathsep.join([str(REPO), env.get('PYTHONPATH', '')])
+    return subprocess.run([sys.executable, '-m', module, *args], input=stdin, text=True,
+                          capture_output=True, cwd=REPO, env=env, timeout=120)
+
+
+def run_main(monkeypatch, capsys, doc, *args):
+    """Run eval_cli.main in-process with ``doc`` on stdin; return (code, stdout, stderr)."""
+    text = doc if isinstance(doc, str) else json.dumps(doc)
+    monkeypatch.setattr(sys, 'stdin', io.StringIO(text))
+    code = eval_cli.main(list(args))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def test_subprocess_standing_state_from_stdin_matches_the_library():
+    proc = run_module('awp_ros.cli.eval', ['--no-halfspaces'],
+                      stdin=json.dumps({'posture': 'standing', 'stance': ['lf_foot', 'rf_foot',
+                                                                         'lh_foot']}))
+    assert proc.returncode == 0, proc.stderr
+    d = json.loads(proc.stdout)
+    ev = FeasibilityEvaluator('hyq')
+    r = ev.evaluate(ev.standing_state(stance=['lf_foot', 'rf_foot', 'lh_foot']))
+    for name in ('awp', 'fwp', 'fws'):
+        assert d[name]['margin'] == pytest.approx(getattr(r, name).margin, rel=1e-9)
+        assert d[name]['dimension'] == 6
+    assert d['mass'] == pytest.approx(r.mass)
+    assert list(d['legs']) == ['lf_foot', 'rf_foot', 'lh_foot']
+    assert len(d['legs']['lf_foot']['force_polytope']['vertices']) == 8
+    assert set(d['fws']['directional']['fz']) == {'plus', 'minus'}
+
+
+def test_subprocess_bad_input_exits_2_with_one_line(tmp_path):
+    path = tmp_path / 'state.json'
+    path.write_text('{"posture": "standing", "joint_positions": {"lf_haa_joint": NaN}}')
+    proc = run_module('awp_ros.cli.eval', [str(path)])
+    assert proc.returncode == 2 and proc.stdout == ''
+    assert proc.stderr.count('\n') == 1
+    assert "joint_positions['lf_haa_joint'] is not finite" in proc.stderr
+    assert run_module('awp_ros.cli.eval', ['--help']).returncode == 0
+
+
+def test_explicit_joint_positions_file_and_robot_key(tmp_path, monkeypatch, capsys):
+    ev = FeasibilityEvaluator('solo12')
+    joints = ev.standing_state().joint_positions
+    path = tmp_path / 'solo.json'
+    path.write_text(json.dumps({'robot': 'solo12', 'joint_positions': joints,
+                                'friction_coefficient': 0.5,
+                                'normals': {'FL_FOOT': [0.0, 0.0, 1.0]}}))
+    monkeypatch.setattr(sys, 'stdin', io.StringIO(''))
+    assert eval_cli.main([str(path), '--no-fws', '--indent', '1']) == 0
+    d = json.loads(capsys.readouterr().out)
+    assert d['robot'] == 'solo12' and d['fws'] is None
+    assert d['legs']['FR_FOOT']['friction_coefficient'] == 0.5
+    assert all(len(row) == 7 for row in d['fwp']['halfspaces'])
+
+
+@pytest.mark.parametrize(('doc', 'needle'), [
+    ({'posture': 'standing', 'joint_positions': {'nope_joint': 0.0}}, "['nope_joint']"),
+    ({'joint_positions': {'lf_haa_joint': 0.0}}, 'lacks joints'),
+    ({}, 'joint_positions is required'),
+    ({'posture': 'standing', 'stance': ['lf_foot', 'xx_foot']}, "['xx_foot']"),
+    ({'posture': 'standing', 'friction_coefficient': -1}, 'friction_coefficient'),
+    ({'posture': 'standing', 'normals': {'lf_foot': [0, 0, 0]}}, "normals['lf_foot']"),
+    ({'posture': 'sitting'}, 'posture'),
+    ({'posture': 'standing', 'stnace': []}, "['stnace']"),
+    ({'robot': 'nosuchbot', 'posture': 'standing'}, "unknown robot 'nosuchbot'"),
+    ({'robot': 7, 'posture': 'standing'}, 'robot must be'),
+    ('{"posture": ', 'not valid JSON'),
+    ('[1, 2]', 'must be a JSON object'),
+])
+def test_bad_input_exit_code_and_message(monkeypatch, capsys, doc, needle):
+    code, out, err = run_main(monkeypatch, capsys, doc)
+    assert code == 2 and out == ''
+    assert err.startswith('awp_eval: error: ') and err.count('\n') == 1
+    assert needle in err
+
+
+def test_missing_state_file(capsys):
+    assert eval_cli.main(['/nonexistent/state.json']) == 2
+    assert 'cannot read state file' in capsys.readouterr().err
+
+
+def test_bench_prints_a_table_and_a_json_line_of_medians(capsys):
+    assert bench_cli.main(['-n', '3', '--warmup', '1', '--seed', '1']) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert lines[1].split()[:2] == ['stage', 'median']
+    rows = {line.split()[0]: float(line.split()[1]) for line in lines[2:-1]}
+    summary = json.loads(lines[-1])
+    for key in ('total_ms', 'fws_margin_ms', 'fws_query_lp_ms', 'validate_ms', 'model_ms',
+                'force_polytopes_ms', 'friction_polytopes_ms', 'awp_ms', 'cwc_fwp_ms',
+                'margins_ms', 'fws_ms', 'fws_directional_ms', 'fws_margin_step_ms'):
+        assert summary[key] > 0, key
+    assert summary['samples'] == 3 and summary['robot'] == 'hyq'
+    assert 'no_fws_ms' not in summary and 'fws_query_lp' in rows
+    # total is the per-cycle evaluation: every per-cycle stage, none of the FWS ones.
+    per_cycle = sum(rows[s] for s in ('validate', 'model', 'force_polytopes',
+                                      'friction_polytopes', 'awp', 'cwc_fwp', 'margins'))
+    assert 0.5 * per_cycle <= rows['total'] < per_cycle + rows['fws']
+    assert summary['fws_margin_ms'] >= summary['fws_ms']
+    assert bench_cli.main(['-n', '2', '--warmup', '0', '--no-fws', '--json-only']) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert 'fws_ms' not in summary and 'fws_margin_ms' not in summary
+    assert summary['total_ms'] > 0 and summary['cwc_fwp_ms'] > 0
+    assert bench_cli.main(['-n', '0']) == 2
+    assert bench_cli.main(['--robot', 'nosuchbot', '-n', '1']) == 2

@@ -1,0 +1,72 @@
+"""The node's DiagnosticArray: rates, staleness, percentiles and levels from counters."""
+
+from __future__ import annotations
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus
+import numpy as np
+
+from awp_ros.node.diagnostics import NodeDiagnostics
+
+
+def _values(status: DiagnosticStatus) -> dict[str, str]:
+    return {kv.key: kv.value for kv in status.values}
+
+
+def test_rates_percentiles_and_ok_levels():
+    d = NodeDiagnostics('awp_node', 'hyq', ['joint_states', 'contacts'])
+    d.build(Time(), wall=100.0)                          # opens the first period
+    for i in range(500):                                  # 500 Hz joint states, 100 Hz contacts
+        d.received('joint_states', 100.0 + i * 0.002)
+        if i % 5 == 0:
+            d.received('contacts', 100.0 + i * 0.002)
+        d.evaluated(0, compute_time_s=1e-3 * (1 + i % 100) / 100, latency_s=2e-3)
+    arr = d.build(Time(sec=7), wall=101.0)
+    inputs, evaluation = arr.status
+    assert arr.header.stamp.sec == 7
+    assert inputs.name == 'awp_node: inputs' and inputs.hardware_id == 'hyq'
+    assert inputs.level == DiagnosticStatus.OK, inputs.message
+    v = _values(inputs)
+    assert v['joint_states rate [Hz]'] == '500.0' and v['contacts rate [Hz]'] == '100.0'
+    e = _values(evaluation)
+    samples = 1e3 * 1e-3 * (1 + np.arange(500) % 100) / 100
+    assert float(e['compute time p50 [ms]']) == round(np.percentile(samples, 50), 3)
+    assert float(e['compute time p99 [ms]']) == round(np.percentile(samples, 99), 3)
+    assert e['reports ok (period)'] == '500' and evaluation.level == DiagnosticStatus.OK
+    # The period counters restart; totals do not.
+    arr = d.build(Time(), wall=102.0)
+    assert _values(arr.status[1])['reports ok (period)'] == '0'
+    assert _values(arr.status[1])['reports ok (total)'] == '500'
+
+
+def test_stale_lost_invalid_and_falling_behind_warn():
+    d = NodeDiagnostics('n', 'hyq', ['joint_states', 'contacts'], stale_timeout_s=0.5)
+    assert d.build(Time(), wall=0.0).status[0].level == DiagnosticStatus.ERROR  # nothing yet
+    d.received('contacts', 0.1)
+    for i in range(100):
+        d.received('joint_states', 0.9 + i * 1e-3)
+        d.evaluated(0, compute_time_s=20e-3, latency_s=None)  # 20 ms each at 100 Hz
+    d.lost('joint_states', 3)
+    arr = d.build(Time(), wall=1.0)
+    inputs, evaluation = arr.status
+    assert inputs.level == DiagnosticStatus.WARN
+    assert 'stale: contacts' in inputs.message and 'lost: joint_states (3)' in inputs.message
+    assert evaluation.level == DiagnosticStatus.WARN and 'falling behind' in evaluation.message
+    d.received('contacts', 1.5)
+    d.received('joint_states', 1.5)
+    d.evaluated(2, 1e-4, None, "joint_positions lacks joints ['x']")
+    evaluation = d.build(Time(), wall=2.0).status[1]
+    assert evaluation.level == DiagnosticStatus.WARN
+    assert '1 of 1 reports not evaluated' in evaluation.message and "['x']" in \
+        _values(evaluation)['last error']
+
+
+def test_sequence_gaps_count_and_an_unknown_number_starts_over():
+    d = NodeDiagnostics('n', 'hyq', ['joint_states', 'contacts'])
+    assert [d.sequence('joint_states', s) for s in (1, 2, 5, 6)] == [0, 0, 2, 0]
+    # A message without its number (EventsExecutor callbacks) may hide a gap: the next
+    # known number starts over instead of counting the unknown message as missing.
+    assert d.sequence('joint_states', None) == 0
+    assert d.sequence('joint_states', 8) == 0 and d.sequence('joint_states', 10) == 1
+    assert d.sequence('joint_states', 3) == 0            # a new publisher starts over
+    assert d.inputs['joint_states'].gaps == 3

@@ -1,0 +1,87 @@
+"""InputDrain: queued messages taken straight from real DDS subscriptions, in order."""
+
+from __future__ import annotations
+
+import time
+
+from awp_ros_msgs.msg import ContactState
+import pytest
+import rclpy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+
+from awp_ros.node.input_drain import InputDrain, take
+
+QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
+                 reliability=ReliabilityPolicy.RELIABLE)
+
+
+@pytest.fixture
+def peers(ros_env):
+    """A publishing node and a subscribing node in two contexts (two DDS participants)."""
+    contexts, nodes = [], []
+    for name in ('drain_pub', 'drain_sub'):
+        ctx = rclpy.Context()
+        rclpy.init(context=ctx, domain_id=int(ros_env['ROS_DOMAIN_ID']))
+        contexts.append(ctx)
+        nodes.append(rclpy.create_node(name, context=ctx))
+    yield nodes
+    for node, ctx in zip(nodes, contexts):
+        node.destroy_node()
+        rclpy.try_shutdown(context=ctx)
+
+
+def _wait(predicate, timeout=20.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline and not predicate():
+        time.sleep(0.02)
+    return predicate()
+
+
+def test_drain_takes_contacts_before_each_joint_state_and_respects_its_budget(peers):
+    pub_node, sub_node = peers
+    log = []
+    js_sub = sub_node.create_subscription(JointState, 'joint_states', lambda m: None, QOS)
+    ct_sub = sub_node.create_subscription(ContactState, 'contacts', lambda m: None, QOS)
+    js_pub = pub_node.create_publisher(JointState, 'joint_states', QOS)
+    ct_pub = pub_node.create_publisher(ContactState, 'contacts', QOS)
+    assert _wait(lambda: js_pub.get_subscription_count() and ct_pub.get_subscription_count())
+    assert take(js_sub) is None                                        # nothing queued yet
+    for i in range(200):
+        if i % 10 == 0:
+            msg = ContactState()
+            msg.header.stamp.nanosec = i
+            ct_pub.publish(msg)
+        msg = JointState()
+        msg.header.stamp.nanosec = i
+        js_pub.publish(msg)
+    time.sleep(1.0)                         # all 220 delivered (reliable, this machine)
+    drain = InputDrain([(ct_sub, lambda m, info: log.append(('c', m.header.stamp.nanosec)))],
+                       (js_sub, lambda m, info: log.append(
+                           ('j', m.header.stamp.nanosec, info['publication_sequence_number']))),
+                       sub_node.context, budget_s=5.0)
+    t0 = time.monotonic()
+    assert drain.run() == 200              # all 200 taken; then it waited out its budget
+    assert 4.9 < time.monotonic() - t0 < 8.0
+    js = [e for e in log if e[0] == 'j']
+    assert [e[1] for e in js] == list(range(200))                  # in order, none lost
+    assert [e[2] for e in js] == list(range(js[0][2], js[0][2] + 200))
+    # Every contacts message received was handed over before the next joint state: the
+    # contacts stamped i precede the joint state i in the log.
+    for i in range(0, 200, 10):
+        assert log.index(('c', i)) < next(k for k, e in enumerate(log) if e[:2] == ('j', i))
+    # A contacts message alone is taken (handed over) while waiting, not spun on.
+    n_log = len(log)
+    ct_pub.publish(ContactState())
+    t0 = time.monotonic()
+    drain.budget_s = 1.0
+    assert drain.run() == 0 and 0.9 < time.monotonic() - t0 < 3.0
+    assert log[n_log:] == [('c', 0)]
+    # budget 0: only what is queued, no waiting.
+    drain.budget_s = 0.0
+    t0 = time.monotonic()
+    assert drain.run() == 0 and time.monotonic() - t0 < 0.5
+    js_pub.publish(JointState())
+    got = []
+    assert _wait(lambda: got.append(drain.run()) or sum(got) == 1, 10.0), (got, log[-3:])
+    drain.close()

@@ -1,0 +1,186 @@
+"""The message-level pipeline: one report per joint state, stamps, throttles, errors."""
+
+from __future__ import annotations
+
+import math
+
+from awp_ros_msgs.msg import ContactState, FeasibilityReport
+import numpy as np
+import pytest
+from sensor_msgs.msg import Imu
+
+from awp_ros.ros.conversions import stamp_to_ns
+from awp_ros.errors import ConfigError
+from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+from awp_ros.ros.cycle import OUTPUTS
+from awp_ros.ros.pipeline import Pipeline
+from awp_ros.ros.pipeline_params import PipelineParams
+from cases import contacts_msg, FEET, joints_msg, stamp, T0
+
+S = FeasibilityReport
+
+
+@pytest.fixture(scope='module')
+def evaluator():
+    return FeasibilityEvaluator('hyq')
+
+
+def _pipeline(**kw) -> Pipeline:
+    return Pipeline('hyq', PipelineParams(**kw))
+
+
+def test_report_equals_the_evaluator_for_the_same_state(evaluator):
+    pl = _pipeline(fws_rate_hz=0.0)
+    pl.on_contacts(contacts_msg(T0, stance=['lf_foot', 'rf_foot', 'rh_foot'], mu=[0.5] * 4))
+    cycle = pl.on_joint_state(joints_msg(evaluator, T0 + 1000, dq=0.05))
+    rep = cycle.report
+    state = evaluator.standing_state(stance=['lf_foot', 'rf_foot', 'rh_foot'],
+                                     friction_coefficient=0.5)
+    state.joint_positions = {k: v + 0.05 for k, v in state.joint_positions.items()}
+    ref = evaluator.evaluate(state)
+    assert rep.status == S.STATUS_OK, rep.status_message
+    assert stamp_to_ns(rep.header.stamp) == T0 + 1000
+    assert rep.header.frame_id == 'com_world_aligned'
+    for name in ('awp', 'fwp', 'fws'):
+        assert getattr(rep, f'{name}_margin') == pytest.approx(getattr(ref, name).margin,
+                                                               abs=1e-9)
+    assert list(rep.stance_feet) == ['lf_foot', 'rf_foot', 'rh_foot']
+    assert stamp_to_ns(rep.fws_stamp) == T0 + 1000 and cycle.fws_computed
+    assert rep.compute_time > 0.0
+    out = cycle.messages()
+    assert set(out) == set(OUTPUTS)
+    assert all(stamp_to_ns(m.header.stamp) == T0 + 1000 for k, m in out.items()
+               if k != 'markers')
+    assert all(stamp_to_ns(m.header.stamp) == T0 + 1000 for m in out['markers'].markers)
+
+
+def test_every_joint_state_gets_a_report_whatever_is_wrong(evaluator):
+    pl = _pipeline()
+    js = joints_msg(evaluator, T0)
+    first = pl.on_joint_state(js)
+    assert first.report.status == S.STATUS_STALE_INPUT
+    assert 'no contacts message received yet' in first.report.status_message
+    assert first.messages().keys() == {'report', 'markers'}    # markers show the reason
+    pl.on_contacts(contacts_msg(T0 - 2 * 10**9))
+    stale = pl.on_joint_state(joints_msg(evaluator, T0 + 10**6))
+    assert stale.report.status == S.STATUS_STALE_INPUT and 'contacts is stale' in \
+        stale.report.status_message
+    pl.on_contacts(contacts_msg(T0))
+    bad = joints_msg(evaluator, T0 + 2 * 10**6)
+    bad.position[3] = math.nan
+    rep = pl.on_joint_state(bad).report
+    assert rep.status == S.STATUS_INVALID_INPUT and 'lh_haa_joint' in rep.status_message
+    assert math.isnan(rep.fwp_margin) and not rep.feasible
+    pl.on_contacts(stamp(ContactState(names=['lf_hand'], in_contact=[True]), T0))
+    rep = pl.on_joint_state(joints_msg(evaluator, T0 + 3 * 10**6)).report
+    assert rep.status == S.STATUS_INVALID_INPUT and 'lf_hand' in rep.status_message
+    pl.on_contacts(contacts_msg(T0))
+    good = pl.on_joint_state(joints_msg(evaluator, T0 + 4 * 10**6)).report
+    assert good.status == S.STATUS_OK and good.feasible
+
+
+def test_a_stamp_going_back_warns_and_restarts_the_throttles(evaluator):
+    pl = _pipeline()
+    pl.on_contacts(contacts_msg(T0))
+    assert pl.on_joint_state(joints_msg(evaluator, T0 + 10**6)).markers_due
+    assert not pl.on_joint_state(joints_msg(evaluator, T0 + 2 * 10**6)).markers_due
+    back = pl.on_joint_state(joints_msg(evaluator, T0))
+    assert back.report.status == S.STATUS_WARNING and 'went back' in back.report.status_message
+    assert back.markers_due and back.fws_computed
+
+
+def test_throttles_follow_stamps_and_a_stance_change_forces_the_fws(evaluator):
+    pl = _pipeline(marker_rate_hz=30.0, fws_rate_hz=10.0)
+    pl.on_contacts(contacts_msg(T0))
+    markers = fws = 0
+    fws_stamps = set()
+    for i in range(1000):                                 # 1 s of 1 kHz joint states
+        if i % 10 == 0:                                   # 100 Hz contacts
+            pl.on_contacts(contacts_msg(T0 + i * 10**6, stance=FEET if i < 550 else FEET[:3]))
+        c = pl.on_joint_state(joints_msg(evaluator, T0 + i * 10**6))
+        markers += c.markers_due
+        fws += c.fws_computed
+        fws_stamps.add(stamp_to_ns(c.report.fws_stamp))
+        assert (c.fws() is not None) == c.fws_computed
+        assert (c.markers() is not None) == c.markers_due
+    assert markers == 30
+    # By rate at 0, 100, ..., 500 ms, the stance change at 550 ms, then by rate again a
+    # period after it: 650, ..., 950 ms.
+    assert fws == 11
+    expected = [0, 100, 200, 300, 400, 500, 550, 650, 750, 850, 950]
+    assert sorted(fws_stamps) == [T0 + t * 10**6 for t in expected]
+    assert _pipeline(marker_rate_hz=0.0).on_joint_state(joints_msg(evaluator, T0)).markers() \
+        is None
+
+
+def test_runtime_config_change_applies_to_the_next_message(evaluator):
+    pl = _pipeline(fws_rate_hz=0.0)
+    pl.on_contacts(contacts_msg(T0))
+    before = pl.on_joint_state(joints_msg(evaluator, T0 + 1)).report
+    limits = {j: (-75.0, 75.0) for j in evaluator.model.joint_names}
+    from dataclasses import replace
+    pl.set_config(replace(pl.config, friction_coefficient=0.3, torque_limits=limits))
+    after = pl.on_joint_state(joints_msg(evaluator, T0 + 2)).report
+    ref = FeasibilityEvaluator(pl.config).evaluate(
+        FeasibilityEvaluator(pl.config).standing_state())
+    assert after.fwp_margin == pytest.approx(ref.fwp.margin, abs=1e-9)
+    assert after.awp_margin < before.awp_margin
+    with pytest.raises(ConfigError, match='marker_frame_id'):
+        pl.set_params(PipelineParams(marker_frame_id='odom'))
+    with pytest.raises(ConfigError, match='fws_rate_hz'):
+        PipelineParams(fws_rate_hz=-1.0)
+
+
+def test_imu_orientation_rotates_the_base_and_needs_a_message(evaluator):
+    pl = _pipeline(use_imu=True, marker_frame_id='base_link')
+    pl.on_contacts(contacts_msg(T0))
+    rep = pl.on_joint_state(joints_msg(evaluator, T0 + 1)).report
+    assert rep.status == S.STATUS_STALE_INPUT and 'no imu' in rep.status_message
+    imu = stamp(Imu(), T0)
+    imu.orientation.y, imu.orientation.w = math.sin(0.1), math.cos(0.1)   # pitch 0.2 rad
+    pl.on_imu(imu)
+    cycle = pl.on_joint_state(joints_msg(evaluator, T0 + 10**8))
+    ref = evaluator.evaluate(evaluator.standing_state(
+        base_orientation=[0.0, math.sin(0.1), 0.0, math.cos(0.1)]))
+    assert cycle.report.fwp_margin == pytest.approx(ref.fwp.margin, abs=1e-9)
+    assert cycle.report.fwp_margin != pytest.approx(
+        evaluator.evaluate(evaluator.standing_state()).fwp.margin, abs=1e-6)
+    assert cycle.markers().markers[1].header.frame_id == 'base_link'
+
+
+def test_from_parameters_reads_a_params_file_mapping(repo):
+    import yaml
+    doc = yaml.safe_load((repo / 'config' / 'hyq.yaml').read_text())
+    doc['/**']['ros__parameters'].update(fws_rate_hz=5, marker_rate_hz=15.0)
+    pl = Pipeline.from_parameters(doc)
+    assert pl.config.robot_name == 'hyq' and pl.params.fws_rate_hz == 5.0
+    assert pl.params.marker_rate_hz == 15.0 and pl.root_link == 'base_link'
+    with pytest.raises(ConfigError, match='use_imu must be true or false'):
+        PipelineParams.from_dict({'use_imu': 'yes'})
+    assert np.isclose(pl.config.friction_coefficient, 0.7)
+
+
+def test_inputs_are_paired_by_stamp_as_in_the_recorded_order(evaluator):
+    """A lagging node has taken contacts newer than the joint state it evaluates."""
+    pl = _pipeline(use_imu=True)
+    ms = 10**6
+    for i, stance in enumerate([FEET, FEET[:2], FEET[:3]]):      # at 0, 10 and 20 ms
+        pl.on_contacts(contacts_msg(T0 + 10 * i * ms, stance=stance))
+    for i in range(3):
+        imu = stamp(Imu(), T0 + 10 * i * ms)
+        imu.orientation.x, imu.orientation.w = math.sin(0.05 * i), math.cos(0.05 * i)
+        pl.on_imu(imu)
+    stances = []
+    for t in (5, 12, 25, 26):
+        rep = pl.on_joint_state(joints_msg(evaluator, T0 + t * ms)).report
+        assert rep.status == S.STATUS_OK, rep.status_message
+        stances.append(len(rep.stance_feet))
+    assert stances == [4, 2, 3, 3]
+    roll = evaluator.evaluate(evaluator.standing_state(
+        stance=FEET[:3], base_orientation=[math.sin(0.1), 0.0, 0.0, math.cos(0.1)]))
+    assert rep.fwp_margin == pytest.approx(roll.fwp.margin, abs=1e-9)
+    # Every buffered input is newer than the joint state: the earliest one is used.
+    pl = _pipeline()
+    pl.on_contacts(contacts_msg(T0 + 3 * ms, stance=FEET[:3]))
+    pl.on_contacts(contacts_msg(T0 + 4 * ms, stance=FEET[:2]))
+    assert len(pl.on_joint_state(joints_msg(evaluator, T0)).report.stance_feet) == 3
