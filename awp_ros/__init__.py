@@ -1,4 +1,5 @@
-"""awp_ros: actuation-consistent and feasible wrench polytopes of legged robots.
+"""
+awp_ros: actuation-consistent and feasible wrench polytopes of legged robots.
 
 ``import awp_ros`` gives the ROS-free library (numpy, scipy, Pinocchio; no rclpy, no
 message packages)::
@@ -30,11 +31,9 @@ Package-wide: :mod:`awp_ros.errors` (every exception the package raises) and
 
 from __future__ import annotations
 
-from awp_ros.errors import (AwpError, BagError, ConfigError, GeometryError, InputError,
-                            ModelError)
+from awp_ros.errors import AwpError, BagError, ConfigError, GeometryError, InputError, ModelError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
-from awp_ros.evaluation.result import (AXES, FeasibilityResult, LegResult,
-                                       WrenchSetResult)
+from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
 from awp_ros.geometry.margin import directional_margins, polytope_margin, SetMargin
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.robot.config import available_configs, load_config, RobotConfig

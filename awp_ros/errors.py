@@ -1,4 +1,5 @@
-"""Exception classes of awp_ros, one per area (the rosbags pattern).
+"""
+Exception classes of awp_ros, one per area (the rosbags pattern).
 
 Every error raised on purpose by the package derives from :class:`AwpError`.
 Errors caused by what the caller passed also derive from :class:`ValueError`,

@@ -1,4 +1,5 @@
-"""Process-wide tuning for the per-cycle hot path, called once by each executable's main().
+"""
+Process-wide tuning for the per-cycle hot path, called once by each executable's main().
 
 Three settings matter for a loop that evaluates small numpy problems at 1 kHz:
 
@@ -38,7 +39,8 @@ def tune_process(blas_threads: int = 1, heap_bytes: int = 64 << 20) -> None:
 
 
 def freeze_startup_objects() -> None:
-    """Collect once, then exclude every object alive now from later collections (gc.freeze).
+    """
+    Collect once, then exclude every object alive now from later collections (gc.freeze).
 
     Call when the process is set up (model built, node created): a full collection then
     only traverses what the loop created, not the hundreds of thousands of startup objects.

@@ -1,4 +1,5 @@
-"""Test cases shared by several test modules (hand-computable robots, HyQ-like legs, messages).
+"""
+Test cases shared by several test modules (hand-computable robots, HyQ-like legs, messages).
 
 Test modules import it as ``from cases import ...`` (``test/conftest.py`` puts this folder on
 ``sys.path``).
@@ -22,7 +23,8 @@ EFFORT = (10.0, 20.0, 30.0)
 
 
 def toy_urdf(efforts=EFFORT, legs=(('a', 0.0), ('b', 1.0))) -> str:
-    """Return a URDF whose legs have J = diag(0.5, 0.4, 0.3) at q = 0 (world axes).
+    """
+    Return a URDF whose legs have J = diag(0.5, 0.4, 0.3) at q = 0 (world axes).
 
     Leg ``name`` at x offset ``dx``: joint 1 (axis z) at (dx, 0.5, 0), joint 2 (axis x) at
     (dx, 0, 0.4), joint 3 (axis y) at (dx + 0.3, 0, 0), foot (and a 1 kg point mass) at

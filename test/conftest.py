@@ -19,7 +19,8 @@ _domain_ids = itertools.count(random.Random(os.getpid()).randrange(1, 101))
 
 @pytest.fixture
 def ros_env() -> dict[str, str]:
-    """Return os.environ with DDS kept on this machine and a ROS domain of this test's own.
+    """
+    Return os.environ with DDS kept on this machine and a ROS domain of this test's own.
 
     Each test gets the next domain id (1..101, starting at a per-run random offset), so that
     node processes of two tests, or of two test runs, never discover each other.

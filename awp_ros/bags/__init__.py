@@ -1,6 +1,7 @@
-"""rosbag2 files (mcap, sqlite3) with the rosbags library, and offline replay.
+"""
+rosbag2 files (mcap, sqlite3) with the rosbags library, and offline replay.
 
-- :mod:`types`: message types and the typestore (ROS 2 Jazzy plus awp_ros_msgs).
+- :mod:`message_types`: message types and the typestore (ROS 2 Jazzy plus awp_ros_msgs).
 - :mod:`reader`: BagMessage, read_bag, bag_info.
 - :mod:`writer`: BagWriter.
 - :mod:`player`: play a bag onto DDS at the recorded pace.
@@ -9,4 +10,4 @@
 - :mod:`progress`: the text progress bar.
 """
 
-__all__ = ['types', 'reader', 'writer', 'player', 'replay', 'summary', 'progress']
+__all__ = ['message_types', 'reader', 'writer', 'player', 'replay', 'summary', 'progress']

@@ -1,4 +1,5 @@
-"""Live playback: publish a bag's messages onto DDS at the recorded pace.
+"""
+Live playback: publish a bag's messages onto DDS at the recorded pace.
 
 For feeding a running ``awp_node`` where ``ros2 bag play`` is not installed. Messages are
 published serialised (no round trip through Python objects) on reliable publishers.
@@ -11,10 +12,10 @@ import math
 import time
 from typing import TextIO
 
-from awp_ros.bags.reader import bag_info, read_bag, require_topics
-from awp_ros.bags.types import message_class
-from awp_ros.errors import BagError
+from awp_ros.bags.message_types import message_class
 from awp_ros.bags.progress import Progress
+from awp_ros.bags.reader import bag_info, read_bag, require_topics
+from awp_ros.errors import BagError
 
 __all__ = ['play_bag', 'live_qos']
 
@@ -25,7 +26,8 @@ def play_bag(path, *, rate: float = 1.0, remap: Mapping[str, str] | None = None,
              node_name: str = 'awp_replay_player', progress: bool = True,
              stream: TextIO | None = None, ack_timeout_s: float = 10.0,
              duration_s: float | None = None) -> int:
-    """Publish a bag's messages onto live DDS at the recorded pace; return the count.
+    """
+    Publish a bag's messages onto live DDS at the recorded pace; return the count.
 
     rclpy must be initialised by the caller (``rclpy.init()``). Messages are published
     serialised (no deserialisation) on reliable, volatile, keep-last(``qos_depth``)
@@ -90,7 +92,9 @@ def play_bag(path, *, rate: float = 1.0, remap: Mapping[str, str] | None = None,
 
 
 def live_qos(depth: int, *, best_effort: bool = False):
-    """Return the rclpy QoS of live playback and recording: keep last ``depth``, volatile,
+    """
+    Return the rclpy QoS of live playback and recording: keep last ``depth``, volatile,
+
     reliable (or best effort)."""
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 

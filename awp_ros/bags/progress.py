@@ -11,7 +11,8 @@ __all__ = ['Progress']
 
 
 class Progress:
-    """A progress bar with rate and ETA on a text stream (stderr by default).
+    """
+    A progress bar with rate and ETA on a text stream (stderr by default).
 
     On a terminal the bar is redrawn in place at most every ``interval_s``; otherwise a
     plain line is written every ``log_interval_s`` so that logs stay readable.

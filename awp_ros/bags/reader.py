@@ -1,4 +1,5 @@
-"""Read rosbag2 files (mcap or sqlite3) with ``rosbags``, as raw CDR messages.
+"""
+Read rosbag2 files (mcap or sqlite3) with ``rosbags``, as raw CDR messages.
 
 Messages travel as raw CDR bytes (:class:`BagMessage`), so a bag is copied or replayed
 without a round trip through Python objects. A bag path is a rosbag2 directory
@@ -27,7 +28,9 @@ STORAGES = {'.mcap': 'mcap', '.db3': 'sqlite3'}
 
 @dataclass(frozen=True)
 class BagMessage:
-    """One serialised message: ``topic``, ``msgtype`` (``pkg/msg/Name``), log time [ns]
+    """
+    One serialised message: ``topic``, ``msgtype`` (``pkg/msg/Name``), log time [ns]
+
     since the epoch, and its CDR bytes (with the 4-byte encapsulation header)."""
 
     topic: str
@@ -38,7 +41,9 @@ class BagMessage:
 
 @dataclass(frozen=True)
 class TopicInfo:
-    """A topic of a bag: its type, message count, definition (``ros2msg`` text, may be
+    """
+    A topic of a bag: its type, message count, definition (``ros2msg`` text, may be
+
     empty) and RIHS01 type hash (may be empty)."""
 
     msgtype: str
@@ -49,7 +54,9 @@ class TopicInfo:
 
 @dataclass(frozen=True)
 class BagInfo:
-    """Summary of a bag: storage (``mcap`` / ``sqlite3``), topics, message count, first and
+    """
+    Summary of a bag: storage (``mcap`` / ``sqlite3``), topics, message count, first and
+
     last log times [ns]."""
 
     path: str
@@ -96,7 +103,8 @@ def _describe(exc: BaseException) -> str:
 
 
 def bag_info(path: str | os.PathLike) -> BagInfo:
-    """Return the topics, counts and time range of a bag.
+    """
+    Return the topics, counts and time range of a bag.
 
     :raises BagError: the bag does not exist or cannot be read.
     """
@@ -125,7 +133,8 @@ def _storage_of(path: Path, reader) -> str:
 
 def read_bag(path: str | os.PathLike, topics: Iterable[str] | None = None
              ) -> Iterator[BagMessage]:
-    """Yield the messages of a bag in log-time order (ties: recorded order).
+    """
+    Yield the messages of a bag in log-time order (ties: recorded order).
 
     :param path: rosbag2 directory or ``.mcap`` / ``.db3`` file.
     :param topics: only these topics (all when None).
@@ -152,7 +161,8 @@ def read_bag(path: str | os.PathLike, topics: Iterable[str] | None = None
 
 def require_topics(path: str | os.PathLike, wanted: Iterable[str], have: Iterable[str]
                    ) -> None:
-    """Check that a bag has every ``wanted`` topic.
+    """
+    Check that a bag has every ``wanted`` topic.
 
     :param have: the topics the bag at ``path`` has.
     :raises BagError: one is missing (the message names the topics the bag has).

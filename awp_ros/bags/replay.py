@@ -1,4 +1,5 @@
-"""Offline replay of a rosbag2 through the node's pipeline.
+"""
+Offline replay of a rosbag2 through the node's pipeline.
 
 :func:`replay_bag` reads the input topics of a bag (``joint_states``, ``contacts``,
 optionally ``imu``) in recorded order, feeds them to :class:`awp_ros.ros.pipeline` exactly as
@@ -21,19 +22,20 @@ from pathlib import Path
 import time
 from typing import TextIO
 
+from awp_ros.bags.message_types import INPUT_TOPICS, message_class, OUTPUT_TYPES, typestore
+from awp_ros.bags.progress import Progress
 from awp_ros.bags.reader import bag_info, BagMessage, read_bag
-from awp_ros.bags.types import INPUT_TOPICS, message_class, OUTPUT_TYPES, typestore
+from awp_ros.bags.summary import ReplaySummary, summarize_reports
 from awp_ros.bags.writer import BagWriter
 from awp_ros.errors import BagError
-from awp_ros.bags.progress import Progress
-from awp_ros.bags.summary import ReplaySummary, summarize_reports
 
 __all__ = ['replay_bag', 'load_parameters', 'make_pipeline', 'check_input_topics']
 
 
 def load_parameters(params_file=None, *, robot: str = 'hyq',
                     overrides: Mapping | None = None) -> dict:
-    """Return the node's parameters as a flat mapping: a params file plus overrides.
+    """
+    Return the node's parameters as a flat mapping: a params file plus overrides.
 
     :param params_file: a ROS 2 parameters YAML (default ``config/<robot>.yaml`` found by
         :func:`awp_ros.robot.config.config_dirs`).
@@ -84,7 +86,8 @@ def make_pipeline(parameters: Mapping):
 
 
 def check_input_topics(info, topics: Mapping[str, str], *, use_imu: bool) -> dict[str, str]:
-    """Return the input roles present (role -> topic), checking names and types.
+    """
+    Return the input roles present (role -> topic), checking names and types.
 
     :raises BagError: ``joint_states`` or ``contacts`` (or ``imu`` with ``use_imu``) is
         missing, or a topic carries another type than its role needs.
@@ -112,7 +115,8 @@ def replay_bag(in_bag, out_bag, *, pipeline, topics: Mapping[str, str] | None = 
                node_name: str = 'awp_node', outputs: Iterable[str] | None = None,
                copy_inputs: bool = True, storage: str = 'mcap', progress: bool = True,
                stream: TextIO | None = None, compress: bool = True) -> ReplaySummary:
-    """Run a bag through the node's pipeline and write the outputs to a new bag.
+    """
+    Run a bag through the node's pipeline and write the outputs to a new bag.
 
     Input messages are deserialised into the rclpy message classes the node receives and
     fed in recorded order; each joint state's outputs are written with its log time on

@@ -1,4 +1,5 @@
-"""Counts and margin statistics of a list of ``FeasibilityReport`` messages.
+"""
+Counts and margin statistics of a list of ``FeasibilityReport`` messages.
 
 The summary ``awp_replay`` prints (and ``awp_demo`` at its end): how many reports were valid,
 invalid (by status name) and infeasible, and the distribution of the AWP / FWP / FWS
@@ -20,7 +21,8 @@ _STATUS_NAMES = {0: 'ok', 1: 'warning', 2: 'invalid_input', 3: 'stale_input', 4:
 
 @dataclass
 class ReplaySummary:
-    """Counts and margin statistics of a replay (or of any list of reports).
+    """
+    Counts and margin statistics of a replay (or of any list of reports).
 
     ``valid``: reports with status OK or WARNING; ``invalid``: any other status (by name in
     ``statuses``); ``infeasible``: valid reports whose ``feasible`` flag (the FWS) is false;
@@ -78,7 +80,8 @@ class ReplaySummary:
 
 
 def summarize_reports(reports: Iterable) -> ReplaySummary:
-    """Count valid / invalid / infeasible reports and compute margin statistics.
+    """
+    Count valid / invalid / infeasible reports and compute margin statistics.
 
     :param reports: ``FeasibilityReport`` messages (rclpy or rosbags objects). FWS margins
         are taken only from reports whose ``fws_stamp`` equals their stamp (computed for

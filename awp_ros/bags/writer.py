@@ -1,10 +1,11 @@
-"""Write rosbag2 files (mcap or sqlite3) with ``rosbags``, from raw CDR messages.
+"""
+Write rosbag2 files (mcap or sqlite3) with ``rosbags``, from raw CDR messages.
 
 Writing to a path ending in ``.mcap`` or ``.db3`` produces that single file (Foxglove opens
 ``.mcap`` files directly; it is written in a temporary folder next to it and moved into
 place when complete); any other path becomes a rosbag2 directory. Topics get the
 definitions and RIHS01 hashes of the input bag they were copied from, or else those of
-:func:`awp_ros.bags.types.typestore`. Every failure raises :class:`~awp_ros.errors.BagError`
+:func:`awp_ros.bags.message_types.typestore`. Every failure raises :class:`~awp_ros.errors.BagError`
 naming the file and the problem, and leaves no partial output behind.
 """
 
@@ -16,21 +17,22 @@ from pathlib import Path
 import shutil
 import tempfile
 
+from awp_ros.bags.message_types import typestore
 from awp_ros.bags.reader import BagMessage, STORAGES
-from awp_ros.bags.types import typestore
 from awp_ros.errors import BagError
 
 __all__ = ['BagWriter', 'reliable_qos', 'remove_path']
 
 
 class BagWriter:
-    """Write :class:`BagMessage` s to a new bag; topics are added on first use.
+    """
+    Write :class:`BagMessage` s to a new bag; topics are added on first use.
 
     Use as a context manager. ``path`` ending in ``.mcap`` / ``.db3`` gives a single file,
     anything else a rosbag2 directory whose storage is ``storage`` (``'mcap'`` or
     ``'sqlite3'``). Definitions and hashes come from ``definitions`` (topic ->
     :class:`~awp_ros.bags.reader.TopicInfo`, e.g. copied from an input bag) or else from
-    :func:`~awp_ros.bags.types.typestore`.
+    :func:`~awp_ros.bags.message_types.typestore`.
     ``compress`` = zstd chunk compression of an mcap (readable by Foxglove, ros2 bag and
     rosbags; not byte-reproducible across zstd versions, so off for the default bag;
     ignored for sqlite3).

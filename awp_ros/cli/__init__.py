@@ -1,4 +1,5 @@
-"""The thin command-line programs: argument parsing and main() only.
+"""
+The thin command-line programs: argument parsing and main() only.
 
 - :mod:`support`: run_main (errors to exit statuses).
 - :mod:`eval`: awp_eval.

@@ -1,4 +1,5 @@
-"""``awp_bench``: time the feasibility pipeline stage by stage over random standing postures.
+"""
+``awp_bench``: time the feasibility pipeline stage by stage over random standing postures.
 
 Each sample perturbs every joint of the config's standing posture by a uniform offset in
 ``[-spread, spread]`` [rad] (seeded) with every foot in stance (or ``--stance``). Two passes
@@ -33,8 +34,8 @@ import numpy as np
 
 from awp_ros.errors import AwpError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator, STAGES
-from awp_ros.wrench.fws_queries import lp_directional_margins
 from awp_ros.runtime import tune_process
+from awp_ros.wrench.fws_queries import lp_directional_margins
 
 __all__ = ['main', 'run_benchmark']
 
@@ -46,7 +47,8 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
                   spread: float = 0.1, warmup: int = 5,
                   stance: tuple[str, ...] | None = None,
                   fws: bool = True) -> dict[str, np.ndarray]:
-    """Return the per-stage timings [ms] of ``samples`` random standing postures.
+    """
+    Return the per-stage timings [ms] of ``samples`` random standing postures.
 
     :param evaluator: the evaluator (its config needs a standing posture).
     :param samples: number of timed evaluations.

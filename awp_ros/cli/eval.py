@@ -1,4 +1,5 @@
-"""``awp_eval``: evaluate one robot state given as JSON and print the result as JSON.
+"""
+``awp_eval``: evaluate one robot state given as JSON and print the result as JSON.
 
 Input (a file argument, or stdin when absent or ``-``), one JSON object::
 
@@ -49,7 +50,8 @@ _KEYS = ('robot', 'posture') + _STATE_KEYS
 
 
 def state_from_json(doc: Mapping, evaluator: FeasibilityEvaluator) -> RobotState:
-    """Return the :class:`RobotState` of an ``awp_eval`` input document.
+    """
+    Return the :class:`RobotState` of an ``awp_eval`` input document.
 
     :raises InputError: unknown keys, a bad ``posture``, or missing ``joint_positions``.
     """

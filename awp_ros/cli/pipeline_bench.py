@@ -1,4 +1,5 @@
-"""Time the node's pipeline, message by message, over a bag (no DDS): where a joint state goes.
+"""
+Time the node's pipeline, message by message, over a bag (no DDS): where a joint state goes.
 
 ::
 

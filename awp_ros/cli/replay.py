@@ -1,4 +1,5 @@
-"""``awp_replay``: replay a rosbag2 through the node's pipeline, or play it onto DDS.
+"""
+``awp_replay``: replay a rosbag2 through the node's pipeline, or play it onto DDS.
 
 ::
 
@@ -32,7 +33,8 @@ PROG = 'awp_replay'
 
 
 def parse_override(text: str) -> tuple[str, object]:
-    """Parse ``key=value`` or ``key:=value``; the value is read as YAML (``true``, ``0.5``,
+    """
+    Parse ``key=value`` or ``key:=value``; the value is read as YAML (``true``, ``0.5``,
     ``[0, 0, 1]``), like ``ros2 run ... -p``.
 
     :raises argparse.ArgumentTypeError: no ``=``.

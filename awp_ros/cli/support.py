@@ -1,4 +1,5 @@
-"""Plumbing shared by the command-line programs (``awp_replay``, ``awp_demo``, the gait script).
+"""
+Plumbing shared by the command-line programs (``awp_replay``, ``awp_demo``, the gait script).
 
 - :func:`run_main`: run a program's body and turn the package's errors into one line on
   stderr and an exit status (2 bad input, 1 internal failure, 130 Ctrl-C).
@@ -16,7 +17,8 @@ __all__ = ['run_main']
 
 def run_main(prog: str, body: Callable[[], int], *, interrupted: str = 'interrupted',
              failures: tuple[type[AwpError], ...] = ()) -> int:
-    """Return ``body()``, or an exit status after writing ``PROG: ...`` to stderr.
+    """
+    Return ``body()``, or an exit status after writing ``PROG: ...`` to stderr.
 
     :param prog: the program name that starts the message.
     :param interrupted: the message on Ctrl-C (status 130).

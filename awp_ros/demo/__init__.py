@@ -1,4 +1,5 @@
-"""awp_demo: the node fed the default bag, a live table, a bag and a PNG.
+"""
+awp_demo: the node fed the default bag, a live table, a bag and a PNG.
 
 - :mod:`demo`: main() of awp_demo.
 - :mod:`recorder`: recording a running node into a bag.

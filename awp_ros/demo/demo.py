@@ -1,4 +1,5 @@
-"""``awp_demo``: the main job. awp_node on HyQ, fed a recorded crawl/trot, margins live.
+"""
+``awp_demo``: the main job. awp_node on HyQ, fed a recorded crawl/trot, margins live.
 
 Steps: start ``awp_node`` as its own process (``--params-file config/<robot>.yaml``); play
 the default bag (``config/hyq_gait.mcap``: 500 Hz joint states and contacts, 100 Hz IMU;
@@ -28,18 +29,18 @@ import sys
 import threading
 import time
 
+from awp_ros.bags.message_types import INPUT_TOPICS
 from awp_ros.bags.player import play_bag
 from awp_ros.bags.reader import bag_info, read_bag
-from awp_ros.bags.types import INPUT_TOPICS
+from awp_ros.bags.summary import summarize_reports
 from awp_ros.bags.writer import BagWriter, remove_path
 from awp_ros.cli.support import run_main
-from awp_ros.robot.config import find_config_file
+from awp_ros.demo.plot import MarginSeries, plot_margins
+from awp_ros.demo.recorder import discover_outputs, Recorder
+from awp_ros.demo.table import ReportTable, TABLE_HEADER
 from awp_ros.errors import AwpError, BagError, ConfigError
 from awp_ros.gait.bag import default_bag_path
-from awp_ros.demo.recorder import discover_outputs, Recorder
-from awp_ros.demo.plot import MarginSeries, plot_margins
-from awp_ros.bags.summary import summarize_reports
-from awp_ros.demo.table import ReportTable, TABLE_HEADER
+from awp_ros.robot.config import find_config_file
 
 __all__ = ['main']
 

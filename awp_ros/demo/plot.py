@@ -1,4 +1,5 @@
-"""The margins plot: AWP / FWP / FWS margins of a run over time, stance phases shaded.
+"""
+The margins plot: AWP / FWP / FWS margins of a run over time, stance phases shaded.
 
 :class:`MarginSeries` turns ``FeasibilityReport`` messages (rclpy or rosbags objects) into
 time series; :func:`plot_margins` draws them into a PNG with matplotlib (imported when
@@ -23,7 +24,9 @@ STANCE_LABELS = {4: '4 feet down', 3: '3 feet (crawl swing)', 2: '2 feet (trot)'
 
 @dataclass
 class MarginSeries:
-    """Per-report time series: ``t`` [s] from the first report, margins [N, N.m] (NaN when
+    """
+    Per-report time series: ``t`` [s] from the first report, margins [N, N.m] (NaN when
+
     not evaluated; ``fws`` NaN also where it was not computed for that very cycle)."""
 
     feet: tuple[str, ...]
@@ -81,7 +84,8 @@ def _caption(s: MarginSeries, count: np.ndarray) -> str:
 
 
 def plot_margins(series: MarginSeries, path, *, title: str = '') -> Path:
-    """Write the margins PNG and return its path.
+    """
+    Write the margins PNG and return its path.
 
     Top: AWP and FWP margins (and the FWS margin where computed) [N, N.m], measured inside
     each set's affine hull. Middle: distance of the wrench from the FWP's affine hull (non

@@ -1,4 +1,5 @@
-"""Recording a running node: its input and output topics, serialised, into a bag.
+"""
+Recording a running node: its input and output topics, serialised, into a bag.
 
 :func:`discover_outputs` waits for ``awp_node``'s publishers; :class:`Recorder` subscribes
 to topics without deserialising them and writes every message to a
@@ -11,9 +12,9 @@ from __future__ import annotations
 import threading
 import time
 
+from awp_ros.bags.message_types import message_class, OUTPUT_TYPES
 from awp_ros.bags.player import live_qos
 from awp_ros.bags.reader import BagMessage
-from awp_ros.bags.types import message_class, OUTPUT_TYPES
 from awp_ros.bags.writer import BagWriter
 
 __all__ = ['Recorder', 'discover_outputs', 'REPORT_TYPE']

@@ -1,4 +1,5 @@
-"""Render a ``visualization_msgs/MarkerArray`` to a PNG with matplotlib (no display needed).
+"""
+Render a ``visualization_msgs/MarkerArray`` to a PNG with matplotlib (no display needed).
 
 For the README's screenshot of what RViz / Foxglove show, from the markers ``awp_node``
 publishes::
@@ -41,7 +42,8 @@ def _pose_points(m: Marker) -> np.ndarray:
 
 def render_marker_array(arr: MarkerArray, path: str, *, title: str = '',
                         elev: float = 18.0, azim: float = -60.0, dpi: int = 130) -> None:
-    """Draw the ADD markers of ``arr`` into a PNG at ``path``.
+    """
+    Draw the ADD markers of ``arr`` into a PNG at ``path``.
 
     :param arr: the markers (a DELETEALL first, as awp_node sends, is ignored).
     :param path: output PNG path.

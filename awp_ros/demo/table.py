@@ -1,4 +1,5 @@
-"""The live table of ``awp_demo``: one row of a report every so many seconds of bag time.
+"""
+The live table of ``awp_demo``: one row of a report every so many seconds of bag time.
 
 Columns: time [s], stance feet (``--`` = swing), FWP margin [N, N.m], FWP membership,
 distance off the FWP's affine hull [N, N.m], and the report's ``feasible`` (FWS) verdict.
@@ -17,7 +18,9 @@ TABLE_HEADER = f'{"t [s]":>7}  {"stance":<12}  {"FWP margin":>10}  {"in FWP":<6}
 
 
 def format_row(report, feet, t0_ns: int) -> str:
-    """Return one table row: time [s] since ``t0_ns``, stance (``--`` = swing), FWP margin
+    """
+    Return one table row: time [s] since ``t0_ns``, stance (``--`` = swing), FWP margin
+
     [N, N.m], FWP membership, distance off the FWP hull, and the report's ``feasible``."""
     t = (stamp_ns(report.header.stamp) - t0_ns) * 1e-9
     stance = ' '.join(f.split('_')[0].upper()[:2] if f in report.stance_feet else '--'
@@ -31,7 +34,8 @@ def format_row(report, feet, t0_ns: int) -> str:
 
 
 class ReportTable:
-    """Print a table row every ``period`` [s] of report stamps.
+    """
+    Print a table row every ``period`` [s] of report stamps.
 
     ``rec`` is a :class:`~awp_ros.demo.recorder.Recorder` (its ``lock`` and ``reports``);
     ``say`` prints one line.

@@ -1,4 +1,5 @@
-"""The feasibility evaluator (ROS-free): one state in, every set and margin out.
+"""
+The feasibility evaluator (ROS-free): one state in, every set and margin out.
 
 - :mod:`evaluator`: FeasibilityEvaluator, the per-cycle stages.
 - :mod:`result`: FeasibilityResult, LegResult, WrenchSetResult.

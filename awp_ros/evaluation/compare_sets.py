@@ -1,4 +1,5 @@
-"""How much of the FWP lies outside the FWS: ``python -m awp_ros.evaluation.compare_sets``.
+"""
+How much of the FWP lies outside the FWS: ``python -m awp_ros.evaluation.compare_sets``.
 
 The FWP (seed: AWP ∩ CWC) asks that *some* force distribution respects the torque limits
 and *some*, possibly other, distribution respects friction and unilaterality; the FWS asks

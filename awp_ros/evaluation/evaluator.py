@@ -1,4 +1,5 @@
-"""The feasibility evaluator: one object per robot, one call per state, one result object.
+r"""
+The feasibility evaluator: one object per robot, one call per state, one result object.
 
 Pipeline of :meth:`FeasibilityEvaluator.evaluate` (frames: world-aligned axes, origin at the
 whole-robot CoM; SI units). Stage names are the keys of ``timings_ms`` [ms]:
@@ -7,20 +8,20 @@ whole-robot CoM; SI units). Stage names are the keys of ``timings_ms`` [ms]:
 2. ``model``: Pinocchio update, base at the origin with the measured orientation: bias
    torques ``rnea(q, v, a)``, LOCAL_WORLD_ALIGNED foot Jacobians, CoM, mass and the
    gravito-inertial wrench ``w = [m (c'' - g); L']`` (quasi-static ``[0, 0, m g, 0, 0, 0]``).
-3. ``force_polytopes``: per stance leg :math:`\\{f : \\tau_{min} \\le b - J^T f \\le
-   \\tau_{max}\\}` (closed-form parallelepipeds for 3-joint legs, batched).
+3. ``force_polytopes``: per stance leg :math:`\{f : \tau_{min} \le b - J^T f \le
+   \tau_{max}\}` (closed-form parallelepipeds for 3-joint legs, batched).
 4. ``friction_polytopes``: each ∩ its friction pyramid ∩ ``n . f >= 0``, computed on first
    use (:attr:`LegResult.friction_polytope`: the FWS, leg messages, markers); this stage only
    proves each non-empty (a force-polytope vertex strictly inside the pyramid) or, when that
    test fails, computes them to warn about a leg that cannot push.
-5. ``awp``: :math:`\\sum_k L_k \\mathcal F_k`, a zonotope with 3K generators when every leg
+5. ``awp``: :math:`\sum_k L_k \mathcal F_k`, a zonotope with 3K generators when every leg
    is a parallelepiped (or a singular leg's flat image), else the exact Minkowski sum.
 6. ``cwc_fwp``: the contact wrench cone and FWP = AWP ∩ CWC (the seed's FWP).
 7. ``margins``: signed Euclidean margins and witnesses of ``w`` for AWP and FWP.
 
 ``total`` is the wall time of the whole per-cycle evaluation, the seven stages back to back:
 what ``evaluate(state, fws=False)`` costs. The feasible wrench set
-:math:`\\sum_k L_k \\mathcal F_{\\mu,k}` is timed apart, as it may run at a lower rate
+:math:`\sum_k L_k \mathcal F_{\mu,k}` is timed apart, as it may run at a lower rate
 (:meth:`FeasibilityEvaluator.add_fws`): ``fws`` (its exact H-rep, including the
 friction-bounded polytopes when not yet computed), ``fws_directional`` (how
 far ``w`` can move along each wrench axis inside it) and ``fws_margin`` (its signed Euclidean
@@ -38,17 +39,17 @@ import time
 
 import numpy as np
 
-from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone
 from awp_ros.errors import ConfigError
-from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
-from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
-from awp_ros.wrench.friction_polytope import FrictionPolytopes, friction_rows, vertex_inside
+from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
 from awp_ros.geometry.margin import directional_margins, polytope_margin
 from awp_ros.geometry.polytope import Polytope
-from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
 from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.robot.model import RobotModel
 from awp_ros.robot.state import resolve_state, RobotState
+from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone
+from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
+from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
+from awp_ros.wrench.friction_polytope import friction_rows, FrictionPolytopes, vertex_inside
 from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope, feasible_wrench_polytope
 
 __all__ = ['FeasibilityEvaluator', 'STAGES']
@@ -59,7 +60,8 @@ STAGES = ('validate', 'model', 'force_polytopes', 'friction_polytopes', 'awp', '
 
 
 class FeasibilityEvaluator:
-    """Compute force polytopes, AWP, FWP, FWS and margins of a robot, one state at a time.
+    """
+    Compute force polytopes, AWP, FWP, FWS and margins of a robot, one state at a time.
 
     :param config: a :class:`RobotConfig`, or a config name / YAML path for
         :func:`~awp_ros.robot.config.load_config`.
@@ -101,7 +103,8 @@ class FeasibilityEvaluator:
         return RobotState(joint_positions=joints, **kw)
 
     def evaluate(self, state: RobotState, *, fws: bool = True) -> FeasibilityResult:
-        """Evaluate one state (see the module docstring for the stages).
+        """
+        Evaluate one state (see the module docstring for the stages).
 
         :param state: the robot state.
         :param fws: also compute the FWS, its directional margins and Euclidean margin
@@ -162,7 +165,8 @@ class FeasibilityEvaluator:
         return result
 
     def add_fws(self, result: FeasibilityResult) -> FeasibilityResult:
-        """Compute the FWS of an evaluated state and store it in ``result.fws``.
+        """
+        Compute the FWS of an evaluated state and store it in ``result.fws``.
 
         Lets a caller run :meth:`evaluate` with ``fws=False`` every cycle and add the FWS
         (exact H-rep, directional margins, Euclidean margin) at a lower rate. Adds the
@@ -205,7 +209,8 @@ class FeasibilityEvaluator:
 
     def _force_polytopes(self, stance: tuple[str, ...], J: list, bias: list,
                          warnings: list[str]) -> tuple[list[Polytope], tuple | None]:
-        """Return the force polytope of each stance leg (batched for 3-joint legs).
+        """
+        Return the force polytope of each stance leg (batched for 3-joint legs).
 
         Also return ``(centers (K, 3), generators (K, 3, 3))`` of the AWP's zonotope when
         every leg is a parallelepiped or a singular leg's flat image, else None.

@@ -1,4 +1,5 @@
-"""The result objects of one evaluation and their JSON form (``awp_eval``'s output).
+"""
+The result objects of one evaluation and their JSON form (``awp_eval``'s output).
 
 Frames: world-aligned axes, origin at the whole-robot CoM (base at the world origin with the
 measured orientation); forces [N], moments [N.m], positions [m]. See
@@ -25,7 +26,8 @@ AXES = ('fx', 'fy', 'fz', 'mx', 'my', 'mz')
 
 @dataclass
 class LegResult:
-    """The polytopes of one stance leg (forces [N] on the robot, world axes).
+    """
+    The polytopes of one stance leg (forces [N] on the robot, world axes).
 
     ``position``: foot relative to the CoM [m]; ``normal``: unit contact normal;
     ``singular``: J rank-deficient, the force polytope is the seed's pseudo-inverse image;
@@ -65,7 +67,8 @@ class LegResult:
 
 @dataclass
 class WrenchSetResult:
-    """A 6D wrench set (AWP, FWP or FWS) and the margin of the evaluated wrench.
+    """
+    A 6D wrench set (AWP, FWP or FWS) and the margin of the evaluated wrench.
 
     ``margin`` [N, N.m]: signed distance inside the affine hull (positive inside);
     ``normal``: unit witness (outward normal of the nearest facet, or direction from the set
@@ -90,7 +93,8 @@ class WrenchSetResult:
                    int(m.dimension), float(m.affine_residual), bool(m.feasible))
 
     def to_dict(self, *, halfspaces: bool = True) -> dict:
-        """Return the set as JSON-ready builtins (non-finite numbers become None).
+        """
+        Return the set as JSON-ready builtins (non-finite numbers become None).
 
         ``halfspaces`` rows are ``[a_1 .. a_6, b]`` with ``a . x <= b``; for a flat set the
         affine hull is ``hull_origin + span(hull_basis columns)``.
@@ -115,7 +119,8 @@ class WrenchSetResult:
 
 @dataclass
 class FeasibilityResult:
-    """Everything one evaluation computed (see the module docstring).
+    """
+    Everything one evaluation computed (see the module docstring).
 
     ``com`` [m] is in the world frame with the base at the origin; ``wrench`` [N, N.m] is
     the gravito-inertial wrench the contacts must supply, about the CoM; ``legs`` maps each

@@ -1,4 +1,5 @@
-"""The gait generator of the default bag: crawl and trot postures, contacts, IMU.
+"""
+The gait generator of the default bag: crawl and trot postures, contacts, IMU.
 
 - :mod:`generator`: GaitParams and generate_gait.
 - :mod:`plan`: footstep and body plans of each gait.

@@ -14,7 +14,8 @@ from awp_ros.robot.config import load_config
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Write a gait bag; with no arguments, regenerate the committed default bag.
+    """
+    Write a gait bag; with no arguments, regenerate the committed default bag.
 
     ``python -m awp_ros.gait`` rewrites ``config/hyq_gait.mcap`` of the source tree
     byte-for-byte (HyQ, :class:`GaitParams` defaults, IMU at 100 Hz).

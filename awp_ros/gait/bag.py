@@ -1,4 +1,5 @@
-"""The gait generator's bag: its messages, writing it, and finding the committed default.
+"""
+The gait generator's bag: its messages, writing it, and finding the committed default.
 
 :func:`gait_messages` turns a :class:`~awp_ros.gait.generator.GaitSamples` into the node's input
 messages (joint states, contacts, IMU), serialised by the ``rosbags`` typestore with zero
@@ -16,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
+from awp_ros.bags.message_types import CONTACT_STATE, IMU, INPUT_TOPICS, JOINT_STATE, typestore
 from awp_ros.bags.reader import BagMessage
-from awp_ros.bags.types import CONTACT_STATE, IMU, INPUT_TOPICS, JOINT_STATE, typestore
 from awp_ros.bags.writer import BagWriter
 from awp_ros.errors import BagError
 
@@ -33,7 +34,8 @@ DEFAULT_IMU_RATE_HZ = 100.0
 
 def gait_messages(samples, *, start_ns: int = DEFAULT_START_NS, imu_rate_hz: float | None
                   = None, topics: dict | None = None) -> Iterator[BagMessage]:
-    """Yield the messages of a :class:`~awp_ros.gait.generator.GaitSamples` in log-time order.
+    """
+    Yield the messages of a :class:`~awp_ros.gait.generator.GaitSamples` in log-time order.
 
     Per sample i, stamped ``start_ns + round(t_i * 1e9)``: a ``sensor_msgs/Imu`` (base
     orientation, angular velocity, specific force; frame = the base link; every
@@ -94,7 +96,8 @@ def gait_messages(samples, *, start_ns: int = DEFAULT_START_NS, imu_rate_hz: flo
 def write_gait_bag(samples, path: str | os.PathLike, *, storage: str = 'mcap',
                    start_ns: int = DEFAULT_START_NS, imu_rate_hz: float | None = None,
                    topics: dict | None = None) -> Path:
-    """Write :func:`gait_messages` to a new bag and return its path.
+    """
+    Write :func:`gait_messages` to a new bag and return its path.
 
     The bytes depend only on the samples, the arguments and the ``rosbags`` version (its
     name is in the MCAP header): no wall-clock time, fixed metadata.
@@ -107,7 +110,8 @@ def write_gait_bag(samples, path: str | os.PathLike, *, storage: str = 'mcap',
 
 
 def default_bag_path() -> Path:
-    """Return the committed default input bag (``config/hyq_gait.mcap``).
+    """
+    Return the committed default input bag (``config/hyq_gait.mcap``).
 
     Looked up in the config folders of :func:`awp_ros.robot.config.config_dirs` (installed
     share folder first, then the source tree).

@@ -1,12 +1,13 @@
-"""Time-parametrised curves of the gait generator: rest-to-rest paths, ramps and swings.
+r"""
+Time-parametrised curves of the gait generator: rest-to-rest paths, ramps and swings.
 
 Every function is vectorised over the sample times ``t`` [s] (shape (N,)); positions are in
 the world frame [m]. The polynomial they share is the quintic smoothstep
 
 .. math::
 
-    S(u) = u^3 (10 - 15 u + 6 u^2), \\quad S(0) = 0, S(1) = 1,
-    \\quad S'(0) = S'(1) = S''(0) = S''(1) = 0,
+    S(u) = u^3 (10 - 15 u + 6 u^2), \quad S(0) = 0, S(1) = 1,
+    \quad S'(0) = S'(1) = S''(0) = S''(1) = 0,
 
 the minimum-jerk profile between two states at rest.
 """
@@ -50,7 +51,8 @@ def smoothstep(u: np.ndarray) -> np.ndarray:
 
 def min_jerk(t0: float, t1: float, p0: np.ndarray, p1: np.ndarray
              ) -> Callable[[np.ndarray], np.ndarray]:
-    """Return the minimum-jerk path from p0 at t0 to p1 at t1 (rest to rest).
+    """
+    Return the minimum-jerk path from p0 at t0 to p1 at t1 (rest to rest).
 
     .. math:: p(t) = p_0 + (p_1 - p_0) S((t - t_0) / (t_1 - t_0))
     """
@@ -65,7 +67,8 @@ def whole(duration: float, rate_hz: float) -> float:
 
 
 def ramp_distance(u: np.ndarray, duration: float, ramp: float, speed: float) -> np.ndarray:
-    """Distance [m] travelled at time u [s] with a quintic speed ramp up and down.
+    """
+    Distance [m] travelled at time u [s] with a quintic speed ramp up and down.
 
     Speed: ``speed * S(u / ramp)`` up, constant, ``speed * S((duration - u) / ramp)`` down,
     with :math:`S(x) = 10x^3 - 15x^4 + 6x^5`, whose integral is
@@ -86,15 +89,16 @@ def ramp_distance(u: np.ndarray, duration: float, ramp: float, speed: float) -> 
 
 def swing_foot(u: np.ndarray, p0: np.ndarray, p1: np.ndarray, height: float
                ) -> tuple[np.ndarray, np.ndarray]:
-    """Return the swing foot's ground position (n, 2) [m] and height (n,) [m] at phase u.
+    r"""
+    Return the swing foot's ground position (n, 2) [m] and height (n,) [m] at phase u.
 
     A cycloid from ``p0`` to ``p1`` (zero velocity and acceleration at lift-off, u = 0,
     and touch-down, u = 1) and a cosine bump of height ``height`` [m]:
 
     .. math::
 
-        xy(u) = p_0 + (u - \\sin(2 \\pi u) / (2 \\pi)) (p_1 - p_0), \\qquad
-        z(u) = h (1 - \\cos(2 \\pi u)) / 2
+        xy(u) = p_0 + (u - \sin(2 \pi u) / (2 \pi)) (p_1 - p_0), \qquad
+        z(u) = h (1 - \cos(2 \pi u)) / 2
     """
     xy = p0 + np.outer(u - np.sin(2.0 * np.pi * u) / (2 * np.pi), p1 - p0)
     z = 0.5 * height * (1.0 - np.cos(2.0 * np.pi * u))

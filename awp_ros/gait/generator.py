@@ -1,4 +1,5 @@
-"""A kinematic gait generator for quadrupeds: a static crawl and a trot, as joint states.
+r"""
+A kinematic gait generator for quadrupeds: a static crawl and a trot, as joint states.
 
 The robot walks straight along world x on flat ground (z = 0, normal +z). The plan is made
 in the world frame (REP 103, z up) from the feet's nominal positions in the standing
@@ -24,12 +25,12 @@ from the previous sample), joint velocities by central differences at the sample
 
 .. math::
 
-    (1)\\quad p^{b}_k = R^T (p^{w}_k - p^{w}_{base}), \\qquad
-    (2)\\quad q_k \\leftarrow q_k + J_k(q)^{-1} (p^{b}_k - \\mathrm{fk}_k(q)),
-    \\qquad (3)\\quad \\dot q_i \\approx (q_{i+1} - q_{i-1}) / (2 \\Delta t)
+    (1)\quad p^{b}_k = R^T (p^{w}_k - p^{w}_{base}), \qquad
+    (2)\quad q_k \leftarrow q_k + J_k(q)^{-1} (p^{b}_k - \mathrm{fk}_k(q)),
+    \qquad (3)\quad \dot q_i \approx (q_{i+1} - q_{i-1}) / (2 \Delta t)
 
 The IMU signals follow from the base motion: orientation ``R`` (world from base),
-angular velocity :math:`\\omega^b` and specific force :math:`R^T (\\ddot p_{base} - g)`,
+angular velocity :math:`\omega^b` and specific force :math:`R^T (\ddot p_{base} - g)`,
 both in the base frame. Everything is a deterministic function of the config and the
 parameters (no clock, no randomness); positions and velocities are rounded to
 ``round_decimals`` so that the bytes of a bag written from them are reproducible.
@@ -60,7 +61,8 @@ GRAVITY = 9.81  # [m/s^2], matches Pinocchio's default model.gravity
 
 @dataclass(frozen=True)
 class GaitParams:
-    """Parameters of the generated motion (durations [s], lengths [m], angles [rad]).
+    """
+    Parameters of the generated motion (durations [s], lengths [m], angles [rad]).
 
     ``sequence`` lists the gaits in order, each preceded and followed by ``stand_s`` of
     standing. Durations are rounded to whole samples of ``rate_hz``.
@@ -110,7 +112,8 @@ class GaitParams:
 
 @dataclass(frozen=True)
 class GaitSamples:
-    """A sampled motion. N samples at ``rate_hz``; K feet; n_j joints.
+    """
+    A sampled motion. N samples at ``rate_hz``; K feet; n_j joints.
 
     ``t`` (N,) [s] from the start; ``q``, ``v`` (N, n_j) joint positions [rad] and
     velocities [rad/s] in ``joint_names`` order; ``stance`` (N, K) feet in contact, in
@@ -145,7 +148,8 @@ class GaitSamples:
 def generate_gait(config: RobotConfig, params: GaitParams | None = None, *,
                   model: RobotModel | None = None, ik_tol: float = 1e-11,
                   ik_max_iter: int = 30) -> GaitSamples:
-    """Generate the joint-space motion of ``params.sequence`` for a quadruped.
+    """
+    Generate the joint-space motion of ``params.sequence`` for a quadruped.
 
     :param config: robot config with 4 feet (one per quadrant of the base frame) and a
         ``standing_posture``.

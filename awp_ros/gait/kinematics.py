@@ -1,4 +1,5 @@
-"""Kinematics of the gait generator: standing geometry, inverse kinematics, CoM, frames.
+r"""
+Kinematics of the gait generator: standing geometry, inverse kinematics, CoM, frames.
 
 Frames: world (REP 103, z up) and the base frame of the floating base; the base orientation
 is a roll about world x only (``R = rot_x(roll)``), as the gait generator makes it. The
@@ -6,8 +7,8 @@ equations the gait module numbers (see :mod:`awp_ros.gait.generator`):
 
 .. math::
 
-    (1)\\quad p^{b}_k = R^T (p^{w}_k - p^{w}_{base}), \\qquad
-    (2)\\quad q_k \\leftarrow q_k + J_k(q)^{-1} (p^{b}_k - \\mathrm{fk}_k(q))
+    (1)\quad p^{b}_k = R^T (p^{w}_k - p^{w}_{base}), \qquad
+    (2)\quad q_k \leftarrow q_k + J_k(q)^{-1} (p^{b}_k - \mathrm{fk}_k(q))
 """
 
 from __future__ import annotations
@@ -23,7 +24,8 @@ __all__ = ['standing_geometry', 'quadrants', 'rotate_to_base', 'inverse_kinemati
 
 
 def standing_geometry(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
-    """Return the feet (K, 3) and CoM (3,) in the base frame in the standing posture [m].
+    """
+    Return the feet (K, 3) and CoM (3,) in the base frame in the standing posture [m].
 
     :raises ConfigError: the config has no ``standing_posture``.
     """
@@ -40,7 +42,8 @@ def standing_geometry(model: RobotModel) -> tuple[np.ndarray, np.ndarray]:
 
 
 def quadrants(feet: tuple[str, ...], nominal: np.ndarray) -> dict[str, int]:
-    """Map 'lf', 'rf', 'lh', 'rh' to foot indices by the sign of the standing positions.
+    """
+    Map 'lf', 'rf', 'lh', 'rh' to foot indices by the sign of the standing positions.
 
     :param nominal: (K, >= 2) standing foot positions in the base frame [m].
     :raises ConfigError: not 4 feet, or two feet in one quadrant.
@@ -58,7 +61,8 @@ def quadrants(feet: tuple[str, ...], nominal: np.ndarray) -> dict[str, int]:
 
 
 def rotate_to_base(v: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Return :math:`R^T v` for :math:`R = rot_x(roll)`: world vectors in the base frame.
+    """
+    Return :math:`R^T v` for :math:`R = rot_x(roll)`: world vectors in the base frame.
 
     :param v: (..., 3) vectors, world frame.
     :param c: cos(roll), broadcastable to ``v[..., 0]``.
@@ -70,7 +74,8 @@ def rotate_to_base(v: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
 
 def inverse_kinematics(model: RobotModel, feet_b: np.ndarray, t: np.ndarray, *,
                        tol: float, max_iter: int) -> np.ndarray:
-    """Solve equation 2 at every sample, warm-started from the previous one.
+    """
+    Solve equation 2 at every sample, warm-started from the previous one.
 
     :param feet_b: (N, K, 3) foot targets in the base frame [m].
     :param t: (N,) sample times [s] (for the error messages).
@@ -116,7 +121,8 @@ def inverse_kinematics(model: RobotModel, feet_b: np.ndarray, t: np.ndarray, *,
 
 def com_world(model: RobotModel, q: np.ndarray, base: np.ndarray,
               quat: np.ndarray) -> np.ndarray:
-    """Return the whole-body CoM in the world frame (N, 3) [m].
+    """
+    Return the whole-body CoM in the world frame (N, 3) [m].
 
     :param q: (N, n_j) joint positions [rad].
     :param base: (N, 3) base positions, world [m].

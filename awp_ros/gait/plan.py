@@ -1,4 +1,5 @@
-"""The gait generator's plan: where the base and every foot are, in the world, over time.
+"""
+The gait generator's plan: where the base and every foot are, in the world, over time.
 
 The robot walks straight along world x on flat ground (z = 0, normal +z). The plan is made
 in the world frame (REP 103, z up) from the feet's nominal positions in the standing posture
@@ -165,12 +166,13 @@ class GaitPlan:
 
 def nearest_inside(point: np.ndarray, vertices: np.ndarray, margin: float, *,
                    tol: float = 1e-12) -> np.ndarray:
-    """Return the point nearest to ``point`` at least ``margin`` inside a convex polygon.
+    r"""
+    Return the point nearest to ``point`` at least ``margin`` inside a convex polygon.
 
     Candidates: the point itself, its projections on the inset edges and the inset
     vertices; the nearest one satisfying every inset halfspace (within ``tol`` [m]) wins.
 
-    .. math:: \\arg\\min_x \\|x - p\\| \\ \\mathrm{s.t.}\\ n_i \\cdot x \\le b_i - m
+    .. math:: \arg\min_x \|x - p\| \ \mathrm{s.t.}\ n_i \cdot x \le b_i - m
 
     :param point: (2,) the point p [m], world xy.
     :param vertices: (m, 2) polygon vertices in order (either orientation) [m].

@@ -1,4 +1,5 @@
-"""Polytope geometry, ROS-free: H/V-representations, exact Minkowski-sum facets, margins.
+"""
+Polytope geometry, ROS-free: H/V-representations, exact Minkowski-sum facets, margins.
 
 - :mod:`polytope`: the Polytope value (vertices, H-rep A x <= b with unit rows, affine hull).
 - :mod:`linalg`: spans, ranks, hyperplane normals, subset trees (the numerics every module shares).

@@ -1,7 +1,8 @@
-"""Exterior algebra of R^r on sorted bases: wedge products and hyperplane normals.
+r"""
+Exterior algebra of R^r on sorted bases: wedge products and hyperplane normals.
 
 A p-vector of R^r is stored by its ``C(r, p)`` coordinates on the basis
-:math:`e_I = e_{i_1} \\wedge \\dots \\wedge e_{i_p}`, ``I`` running over
+:math:`e_I = e_{i_1} \wedge \dots \wedge e_{i_p}`, ``I`` running over
 ``itertools.combinations(range(r), p)`` (lexicographic). The wedge of p vectors has the
 p x p minors of their coordinate matrix as coordinates. Equations used below:
 
@@ -31,9 +32,10 @@ __all__ = ['hodge_normal', 'wedge_all', 'wedge_rows', 'wedge_table']
 
 @lru_cache(maxsize=None)
 def wedge_table(r: int, p: int, q: int) -> np.ndarray:
-    """Return the table of eq. (1), shape ``(C(r, p), C(r, q), C(r, p + q))`` (read-only).
+    r"""
+    Return the table of eq. (1), shape ``(C(r, p), C(r, q), C(r, p + q))`` (read-only).
 
-    .. math:: (x \\wedge y)_S = \\textstyle\\sum_{I, J} x_I\\, y_J\\, T_{I J S}
+    .. math:: (x \wedge y)_S = \textstyle\sum_{I, J} x_I\, y_J\, T_{I J S}
     """
     P = list(combinations(range(r), p))
     Q = list(combinations(range(r), q))
@@ -51,7 +53,8 @@ def wedge_table(r: int, p: int, q: int) -> np.ndarray:
 
 def wedge_all(X: np.ndarray, Y: np.ndarray, r: int, p: int, q: int,
               out: np.ndarray | None = None) -> np.ndarray:
-    """Return every wedge ``x_i ^ y_j`` of each batch entry, eq. (1).
+    """
+    Return every wedge ``x_i ^ y_j`` of each batch entry, eq. (1).
 
     :param X: p-vectors ``(B, n_x, C(r, p))``.
     :param Y: q-vectors ``(B, n_y, C(r, q))``.
@@ -68,7 +71,8 @@ def wedge_all(X: np.ndarray, Y: np.ndarray, r: int, p: int, q: int,
 
 
 def wedge_rows(X: np.ndarray, Y: np.ndarray, r: int, p: int, q: int) -> np.ndarray:
-    """Return the row-wise wedges ``x_i ^ y_i``, shape ``(n, C(r, p + q))``, eq. (1).
+    """
+    Return the row-wise wedges ``x_i ^ y_i``, shape ``(n, C(r, p + q))``, eq. (1).
 
     :param X: p-vectors ``(n, C(r, p))``; :param Y: q-vectors ``(n, C(r, q))``.
     """
@@ -78,9 +82,10 @@ def wedge_rows(X: np.ndarray, Y: np.ndarray, r: int, p: int, q: int) -> np.ndarr
 
 
 def hodge_normal(W: np.ndarray) -> np.ndarray:
-    """Return the hyperplane normals of (r-1)-vectors ``W (..., r)``, eq. (2), same shape.
+    r"""
+    Return the hyperplane normals of (r-1)-vectors ``W (..., r)``, eq. (2), same shape.
 
-    .. math:: n_i = (-1)^i\\, W_{[r] \\setminus \\{i\\}}
+    .. math:: n_i = (-1)^i\, W_{[r] \setminus \{i\}}
     """
     r = W.shape[-1]
     return W[..., ::-1] * _alternating(r)

@@ -1,18 +1,19 @@
-"""Face structure of a small convex polytope of R^3 given by its points, with normal cones.
+r"""
+Face structure of a small convex polytope of R^3 given by its points, with normal cones.
 
 For the Minkowski-sum engine (:mod:`awp_ros.wrench.feasible_wrench_set`) a polytope
-:math:`Q = \\mathrm{conv}\\{v_1, \\dots, v_n\\} \\subset \\mathbb{R}^3` of dimension
-:math:`d \\le 3` (a force polytope [N], in world-aligned axes) is described by its faces
-:math:`G` of every dimension :math:`1 \\le \\dim G \\le d` (edges, facets and ``Q`` itself),
+:math:`Q = \mathrm{conv}\{v_1, \dots, v_n\} \subset \mathbb{R}^3` of dimension
+:math:`d \le 3` (a force polytope [N], in world-aligned axes) is described by its faces
+:math:`G` of every dimension :math:`1 \le \dim G \le d` (edges, facets and ``Q`` itself),
 each with
 
-- an orthonormal basis of its direction space :math:`\\mathrm{dir}(G)` (``dirs``), and
-- check vectors :math:`m_1, \\dots` (``checks``) such that its normal cone is
+- an orthonormal basis of its direction space :math:`\mathrm{dir}(G)` (``dirs``), and
+- check vectors :math:`m_1, \dots` (``checks``) such that its normal cone is
 
 .. math::
 
-    N_Q(G) = \\{c \\in \\mathbb{R}^3 : c \\perp \\mathrm{dir}(G),\\; m_i \\cdot c \\ge 0\\}
-    \\qquad (1)
+    N_Q(G) = \{c \in \mathbb{R}^3 : c \perp \mathrm{dir}(G),\; m_i \cdot c \ge 0\}
+    \qquad (1)
 
 (``c`` maximises ``c . x`` over ``Q`` on all of ``G`` iff ``c`` is in :math:`N_Q(G)`). For a
 3D polytope: a facet with outward unit normal ``n`` has ``m = n`` (c = t n, t >= 0); an edge
@@ -47,7 +48,8 @@ __all__ = ['FaceGroup', 'Faces', 'polytope_faces']
 
 @dataclass(frozen=True)
 class FaceGroup:
-    """Faces of one dimension ``d``, in classes of faces with the same direction space.
+    """
+    Faces of one dimension ``d``, in classes of faces with the same direction space.
 
     ``dirs`` (m, d, 3): an orthonormal basis of each class's direction space; ``checks``
     (m, k, c, 3): the check vectors of the up to ``k`` faces of each class; ``mask`` (m, k):
@@ -68,7 +70,8 @@ class FaceGroup:
     @classmethod
     def from_faces(cls, dirs: np.ndarray, checks: np.ndarray,
                    decimals: int = 10) -> FaceGroup:
-        """Group faces given one by one (``dirs`` (n, d, 3), ``checks`` (n, c, 3)).
+        """
+        Group faces given one by one (``dirs`` (n, d, 3), ``checks`` (n, c, 3)).
 
         Faces whose direction spaces agree after rounding the sign-normalised unit edge
         direction (d = 1) or plane normal (d = 2) to ``decimals`` decimals share a class.
@@ -118,7 +121,8 @@ class FaceGroup:
 
 @dataclass(frozen=True)
 class Faces:
-    """Face structure of a polytope of R^3 (see the module docstring).
+    """
+    Face structure of a polytope of R^3 (see the module docstring).
 
     :ivar dimension: affine dimension (-1 for the empty set).
     :ivar vertices: (n, 3) extreme points [same unit as the input].
@@ -140,10 +144,11 @@ class Faces:
 
 def polytope_faces(points: np.ndarray, halfspaces: tuple[np.ndarray, np.ndarray] | None = None,
                    *, rank_tol: float = 1e-9, plane_tol: float = 1e-9) -> Faces:
-    """Return the faces and normal cones of ``conv(points)`` in R^3.
+    r"""
+    Return the faces and normal cones of ``conv(points)`` in R^3.
 
-    .. math:: Q = \\mathrm{conv}\\{v_1, \\dots, v_n\\}, \\quad
-              N_Q(G) = \\{c : c \\perp \\mathrm{dir}(G), m_i \\cdot c \\ge 0\\}
+    .. math:: Q = \mathrm{conv}\{v_1, \dots, v_n\}, \quad
+              N_Q(G) = \{c : c \perp \mathrm{dir}(G), m_i \cdot c \ge 0\}
 
     :param points: (n, 3) points, any unit (usually forces [N]); duplicates and non-extreme
         points are allowed; ``n = 0`` is the empty set.
@@ -248,7 +253,8 @@ def _facet_planes(V: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _facet_rows(V: np.ndarray, halfspaces: tuple[np.ndarray, np.ndarray],
                 tol: float) -> tuple[np.ndarray, np.ndarray]:
-    """Facet normals and incidence read from supporting rows ``A x <= b`` of a 3D polytope.
+    """
+    Facet normals and incidence read from supporting rows ``A x <= b`` of a 3D polytope.
 
     A row is a facet when the points on it span a plane (second eigenvalue of their scatter
     above ``tol^2``); rows with the same incidence are one facet.
@@ -294,7 +300,8 @@ def _solid_faces(V: np.ndarray, origin: np.ndarray, scale: float, N: np.ndarray,
 
 def _edge_directions(V: np.ndarray, nf: np.ndarray, ng: np.ndarray, shared: np.ndarray,
                      scale: float) -> np.ndarray:
-    """Unit edge directions: n_f x n_g, or the chord between the farthest shared points.
+    """
+    Unit edge directions: n_f x n_g, or the chord between the farthest shared points.
 
     The cross product loses accuracy as 1 / sin(angle) for nearly coplanar facets, the chord
     as scale / length for short edges; the better-conditioned one is used.

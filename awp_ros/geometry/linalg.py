@@ -1,4 +1,5 @@
-"""Small batched linear-algebra kernels shared by the polytope modules.
+"""
+Small batched linear-algebra kernels shared by the polytope modules.
 
 All functions are vectorised over a batch axis: the hot path calls each of them once per
 control cycle on every candidate at once, never in a Python loop over candidates.
@@ -47,7 +48,8 @@ __all__ = [
 
 
 class SubsetTree(NamedTuple):
-    """Prefix tree of index subsets (rows of an integer array), for :func:`subset_normals`.
+    """
+    Prefix tree of index subsets (rows of an integer array), for :func:`subset_normals`.
 
     ``levels[k - 1] = (last, parent)`` over the distinct k-prefixes of the rows (sorted):
     ``last`` is the prefix's final index, ``parent`` the position of its (k-1)-prefix in the
@@ -69,7 +71,8 @@ class SubsetTree(NamedTuple):
 
 
 def subset_tree(subsets: np.ndarray) -> SubsetTree:
-    """Return the prefix tree of the rows of ``subsets`` (integer array ``(m, k)``).
+    """
+    Return the prefix tree of the rows of ``subsets`` (integer array ``(m, k)``).
 
     Build it once per subset pattern (e.g. per stance size, cached by the caller) and pass it
     to :func:`subset_normals`, which then expands each shared prefix once (eq. 3).
@@ -103,7 +106,8 @@ def subset_tree(subsets: np.ndarray) -> SubsetTree:
 
 
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Return the cross products ``a x b`` along the last axis (length 3), broadcasting.
+    """
+    Return the cross products ``a x b`` along the last axis (length 3), broadcasting.
 
     Same result as :func:`numpy.cross`, without its per-call overhead (tens of us): a
     contraction with the Levi-Civita tensor for a few vectors, index shuffles for more.
@@ -117,10 +121,11 @@ def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def hyperplane_normals(B: np.ndarray, rank_tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
-    """Return unit normals of the hyperplanes spanned by batches of d - 1 vectors.
+    r"""
+    Return unit normals of the hyperplanes spanned by batches of d - 1 vectors.
 
-    .. math:: n_i = \\star(\\hat b_{i,1} \\wedge \\dots \\wedge \\hat b_{i,d-1}), \\quad
-              (n_i)_j = (-1)^j \\det \\hat B_i^{(j)}
+    .. math:: n_i = \star(\hat b_{i,1} \wedge \dots \wedge \hat b_{i,d-1}), \quad
+              (n_i)_j = (-1)^j \det \hat B_i^{(j)}
 
     the generalised cross product (eqs. 1-2 of the module docstring) of the unit-scaled
     vectors ``b / |b|``, so ``n_i . b_{i,l} = 0``. ``|n_i|`` before normalisation is the
@@ -157,10 +162,11 @@ def hyperplane_normals(B: np.ndarray, rank_tol: float = 1e-9) -> tuple[np.ndarra
 
 def subset_normals(V: np.ndarray, subsets: np.ndarray | SubsetTree, rank_tol: float = 1e-9,
                    *, unit: bool = False) -> tuple[np.ndarray, np.ndarray]:
-    """Return unit normals of the hyperplanes spanned by subsets of one set of vectors.
+    r"""
+    Return unit normals of the hyperplanes spanned by subsets of one set of vectors.
 
-    .. math:: n_s \\perp v_j \\;\\forall j \\in S_s, \\quad |S_s| = d - 1, \\quad
-              (n_s)_i = (-1)^i \\det \\hat V_{-i, S_s}
+    .. math:: n_s \perp v_j \;\forall j \in S_s, \quad |S_s| = d - 1, \quad
+              (n_s)_i = (-1)^i \det \hat V_{-i, S_s}
 
     The :func:`subset_cross_products` of the unit-scaled columns ``v_j / |v_j|``, normalised:
     their length, the unit-scaled volume, is the rank test (a subset holding a zero vector
@@ -185,9 +191,10 @@ def subset_normals(V: np.ndarray, subsets: np.ndarray | SubsetTree, rank_tol: fl
 
 def subset_cross_products(V: np.ndarray, subsets: np.ndarray | SubsetTree, *,
                           unit: bool = False) -> np.ndarray:
-    """Return the generalised cross products of subsets of one set of vectors, eq. (1).
+    r"""
+    Return the generalised cross products of subsets of one set of vectors, eq. (1).
 
-    .. math:: (n_s)_i = (-1)^i \\det \\hat V_{-i, S_s}, \\quad |S_s| = d - 1
+    .. math:: (n_s)_i = (-1)^i \det \hat V_{-i, S_s}, \quad |S_s| = d - 1
 
     of the unit-scaled columns ``v_j / |v_j|`` (``|n_s|`` is the volume they span), by
     eqs. (1-4) of the module docstring: each level of the :class:`SubsetTree` is one matrix
@@ -227,14 +234,15 @@ def subset_cross_products(V: np.ndarray, subsets: np.ndarray | SubsetTree, *,
 
 
 def orthonormal_span(V: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
-    """Return an orthonormal basis (columns) of the span of the rows of ``V``.
+    r"""
+    Return an orthonormal basis (columns) of the span of the rows of ``V``.
 
     Full rank is first certified without an SVD, from the Cholesky factor ``R`` of the
     Gram matrix ``G = V^T V`` (eigenvalues ``s_i^2``, the squared singular values of V):
 
-    .. math:: \\frac{s_{min}^2}{s_{max}^2} \\ge \\frac{\\lambda_{min}(G)}{\\operatorname{tr} G}
-              \\ge \\frac{\\det G}{(\\operatorname{tr} G)^n}
-              = \\frac{\\prod_i R_{ii}^2}{(\\operatorname{tr} G)^n}
+    .. math:: \frac{s_{min}^2}{s_{max}^2} \ge \frac{\lambda_{min}(G)}{\operatorname{tr} G}
+              \ge \frac{\det G}{(\operatorname{tr} G)^n}
+              = \frac{\prod_i R_{ii}^2}{(\operatorname{tr} G)^n}
 
     (``lambda_max <= tr G`` and ``det G <= lambda_min lambda_max^(n-1)``). When the right
     side exceeds ``max(rtol^2, _GRAM_CERTIFY)`` every singular value is above ``rtol`` times
@@ -269,7 +277,8 @@ def orthonormal_span(V: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
 
 
 def distinct_columns(mask: np.ndarray, own: int = 0) -> np.ndarray:
-    """Return the sorted index of the first of each group of equal columns of a boolean mask.
+    """
+    Return the sorted index of the first of each group of equal columns of a boolean mask.
 
     Used to keep one facet per incidence set (the generators or rays lying on it). With
     ``own > 0`` the caller guarantees that each column holds its own candidate's ``own``
@@ -308,7 +317,8 @@ _LEVI_CIVITA[0, 2, 1] = _LEVI_CIVITA[2, 1, 0] = _LEVI_CIVITA[1, 0, 2] = -1.0
 
 
 def workspace(name: str, shape: tuple[int, ...], dtype: type = np.float64) -> np.ndarray:
-    """Return a per-thread scratch array of ``shape``, reused across calls (contents undefined).
+    """
+    Return a per-thread scratch array of ``shape``, reused across calls (contents undefined).
 
     Large temporaries of the per-cycle kernels (hundreds of kB) would otherwise come from
     fresh pages every cycle when the allocator returns freed memory to the system (glibc
@@ -329,7 +339,8 @@ def workspace(name: str, shape: tuple[int, ...], dtype: type = np.float64) -> np
 
 @lru_cache(maxsize=32)
 def _wedge_step(d: int, k: int) -> np.ndarray:
-    """Table of eq. (4) from k-vectors to (k+1)-vectors of R^d, shape ``(C(d, k) * C, d)``.
+    """
+    Table of eq. (4) from k-vectors to (k+1)-vectors of R^d, shape ``(C(d, k) * C, d)``.
 
     ``(w ^ v)_s = sum_t sum_j w_t v_j T[t, s, j]`` (:func:`awp_ros.geometry.exterior.wedge_table`
     with the vector's index last), ``C = C(d, k + 1)``. At the last step (``k = d - 2``) the

@@ -1,4 +1,5 @@
-"""Signed Euclidean margins of a point with respect to a polytope, and directional margins.
+r"""
+Signed Euclidean margins of a point with respect to a polytope, and directional margins.
 
 Every set of awp_ros (force polytopes in R^3, AWP / FWP / FWS in R^6) is a
 :class:`~awp_ros.geometry.polytope.Polytope` ``P = {x : A x <= b, x = o + U y}`` of affine dimension
@@ -7,10 +8,10 @@ the CoM; or a force in [N]) this module reports
 
 .. math::
 
-    \\rho = \\mathrm{dist}(w, \\mathrm{aff}\\,P), \\qquad
-    \\bar w = o + U U^T (w - o), \\qquad
-    m = \\begin{cases} \\mathrm{dist}(\\bar w, \\partial P) & \\bar w \\in P \\\\
-                      -\\mathrm{dist}(\\bar w, P) & \\bar w \\notin P \\end{cases}
+    \rho = \mathrm{dist}(w, \mathrm{aff}\,P), \qquad
+    \bar w = o + U U^T (w - o), \qquad
+    m = \begin{cases} \mathrm{dist}(\bar w, \partial P) & \bar w \in P \\
+                      -\mathrm{dist}(\bar w, P) & \bar w \notin P \end{cases}
 
 where the boundary is relative to the affine hull (the margin of the projection inside the
 hull). Equations used below:
@@ -41,7 +42,8 @@ __all__ = ['SetMargin', 'directional_margins', 'polytope_margin']
 
 @dataclass(frozen=True)
 class SetMargin:
-    """Signed margin of a point w.r.t. a polytope (see the module docstring).
+    """
+    Signed margin of a point w.r.t. a polytope (see the module docstring).
 
     :ivar margin: signed Euclidean distance inside the affine hull [N, N.m]; positive inside,
         minus the distance to the set outside, 0 for a point set; ``-inf`` for the empty set.
@@ -63,10 +65,11 @@ class SetMargin:
 
 def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6,
                     row_tol: float = 1e-12, working_set: int = 24) -> SetMargin:
-    """Return the signed Euclidean margin of ``w`` with respect to ``P``.
+    r"""
+    Return the signed Euclidean margin of ``w`` with respect to ``P``.
 
-    .. math:: m(w) = \\pm\\, \\mathrm{dist}(\\bar w, \\partial P), \\quad
-              \\bar w = \\mathrm{proj}_{\\mathrm{aff}\\,P}(w)
+    .. math:: m(w) = \pm\, \mathrm{dist}(\bar w, \partial P), \quad
+              \bar w = \mathrm{proj}_{\mathrm{aff}\,P}(w)
 
     Works in hull coordinates ``y = U^T (w - o)``, so full-dimensional and flat sets (1 or 2
     stance legs) are treated alike. Inside: eq. (1) of the module docstring; outside: exact
@@ -127,10 +130,11 @@ def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6
 def directional_margins(P: Polytope, w: np.ndarray, directions: np.ndarray | None = None, *,
                         feasibility_tol: float = 1e-6,
                         parallel_tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
-    """Return how far ``w`` can move along each direction (and its opposite) inside ``P``.
+    r"""
+    Return how far ``w`` can move along each direction (and its opposite) inside ``P``.
 
-    .. math:: t^+_i = \\max\\{t : w + t\\, d_i \\in P\\}, \\qquad
-              t^-_i = \\max\\{t : w - t\\, d_i \\in P\\}
+    .. math:: t^+_i = \max\{t : w + t\, d_i \in P\}, \qquad
+              t^-_i = \max\{t : w - t\, d_i \in P\}
 
     i.e. the line ``w + t d_i`` meets ``P`` in the interval ``[-t^-_i, t^+_i]``. For ``w`` in
     ``P`` both are >= 0 (extra force [N] or moment [N.m] admissible along the axis); for ``w``
@@ -215,7 +219,8 @@ def _check_point(w: np.ndarray, n: int) -> np.ndarray:
 
 def _hull_rows(P: Polytope, y: np.ndarray,
                row_tol: float) -> tuple[np.ndarray | None, np.ndarray]:
-    """Return the unit rows in hull coordinates and the slacks ``b_r - A_r y``.
+    """
+    Return the unit rows in hull coordinates and the slacks ``b_r - A_r y``.
 
     ``(None, _)`` when a constant row is violated (the set is empty).
     """
@@ -232,7 +237,8 @@ def _hull_rows(P: Polytope, y: np.ndarray,
 
 def _least_distance(G: np.ndarray, h: np.ndarray, *, working_set: int = 24,
                     violation_tol: float = 1e-12) -> np.ndarray:
-    """Return the minimum-norm ``x`` with ``G x >= h`` (eq. 2), by constraint generation.
+    """
+    Return the minimum-norm ``x`` with ``G x >= h`` (eq. 2), by constraint generation.
 
     The LDP is solved on a working set of rows (the most violated at ``x = 0`` first); its
     solution is a lower bound, and optimal for all rows once it satisfies them all, else the

@@ -1,4 +1,5 @@
-"""Facet normals of a Minkowski sum of lifted 3D polytopes, by face combinations.
+"""
+Facet normals of a Minkowski sum of lifted 3D polytopes, by face combinations.
 
 The engine of :mod:`awp_ros.wrench.feasible_wrench_set`. For stance feet at ``p_k`` [m] relative
 to the CoM (world-aligned axes) and per-leg polytopes ``Q_k`` [N] (their faces and normal
@@ -61,7 +62,8 @@ FLOAT32_SLACK = 2.5e-6
 
 def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
                   normal_tol: float) -> tuple[np.ndarray, int]:
-    """Return unit candidate normals (N, r) that pass the normal-cone tests, and the count.
+    """
+    Return unit candidate normals (N, r) that pass the normal-cone tests, and the count.
 
     The face choices are grouped by *pattern*, the face dimensions sorted in decreasing order
     (reordering the legs only flips the sign of ``a``, and both signs are tested); all leg
@@ -99,7 +101,8 @@ def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
 
 
 def _patterns(lifted: list[dict], total: int) -> list[tuple[list[int], list[tuple]]]:
-    """Return (dims, leg tuples): face dimensions in decreasing order adding up to ``total``.
+    """
+    Return (dims, leg tuples): face dimensions in decreasing order adding up to ``total``.
 
     Legs are distinct, and increasing within a run of equal dimensions (each face choice once).
     """
@@ -142,7 +145,8 @@ def _stack(items: list[tuple], r: int, d: int) -> tuple[np.ndarray, ...]:
 
 def _pattern_normals(sets: list, dims: list[int], r: int, scale: float, cone_tol: float,
                      normal_tol: float) -> tuple[np.ndarray, int]:
-    """Normals of every face choice of one pattern (a batch of leg tuples) passing (3).
+    """
+    Normals of every face choice of one pattern (a batch of leg tuples) passing (3).
 
     ``scale`` bounds the norm of every lifted unit vector, so ``bound = scale ** r`` bounds
     ``|a|`` times the norm of a lifted check vector (Hadamard) and ``cone_tol * bound`` is an

@@ -1,10 +1,11 @@
-"""A container for convex polytopes of any dimension, in V- and H-representation.
+r"""
+A container for convex polytopes of any dimension, in V- and H-representation.
 
-A polytope :math:`P \\subset \\mathbb{R}^n` of affine dimension :math:`r \\le n` is stored as
+A polytope :math:`P \subset \mathbb{R}^n` of affine dimension :math:`r \le n` is stored as
 
 .. math::
 
-    P = \\{x \\in \\mathbb{R}^n : A x \\le b,\\; x = o + U y,\\; y \\in \\mathbb{R}^r\\}
+    P = \{x \in \mathbb{R}^n : A x \le b,\; x = o + U y,\; y \in \mathbb{R}^r\}
 
 with ``A`` of shape ``(m, n)`` whose rows are unit outward facet normals lying in the
 hull's direction space (``A = A_r U^T``), ``b`` of shape ``(m,)``, the hull origin

@@ -1,10 +1,11 @@
-"""Exact H-representation of a zonotope of any affine dimension (the AWP's engine).
+r"""
+Exact H-representation of a zonotope of any affine dimension (the AWP's engine).
 
 A zonotope with centre ``c`` and generators ``g_1 .. g_m`` (columns of ``G``) is
 
 .. math::
 
-    Z = \\{c + G t : \\|t\\|_\\infty \\le 1\\} = c + \\textstyle\\sum_j [-g_j, g_j]
+    Z = \{c + G t : \|t\|_\infty \le 1\} = c + \textstyle\sum_j [-g_j, g_j]
 
 Let ``U`` span the generators (``r = rank G``) and work in hull coordinates ``U^T g_j``.
 Equations used below:
@@ -33,8 +34,8 @@ from itertools import combinations
 import numpy as np
 
 from awp_ros.errors import InputError
-from awp_ros.geometry.linalg import (distinct_columns, orthonormal_span, subset_normals, subset_tree,
-                            SubsetTree)
+from awp_ros.geometry.linalg import (distinct_columns, orthonormal_span, subset_normals,
+                                     subset_tree, SubsetTree)
 from awp_ros.geometry.polytope import Polytope
 
 __all__ = ['zonotope', 'zonotope_support']
@@ -43,10 +44,11 @@ __all__ = ['zonotope', 'zonotope_support']
 def zonotope(center: np.ndarray, generators: np.ndarray, *, with_vertices: bool = False,
              zero_tol: float = 1e-12, rank_tol: float = 1e-9, span_tol: float = 1e-9,
              incidence_tol: float = 1e-9) -> Polytope:
-    """Return the exact H-representation of the zonotope ``c + G [-1, 1]^m``.
+    r"""
+    Return the exact H-representation of the zonotope ``c + G [-1, 1]^m``.
 
-    .. math:: Z = \\{x : a_i . x \\le a_i . c + \\textstyle\\sum_j |a_i . g_j|\\},
-              \\quad a_i \\perp \\{g_j\\}_{j \\in S_i}, \\; |S_i| = r - 1
+    .. math:: Z = \{x : a_i . x \le a_i . c + \textstyle\sum_j |a_i . g_j|\},
+              \quad a_i \perp \{g_j\}_{j \in S_i}, \; |S_i| = r - 1
 
     :param center: centre ``c`` of shape ``(n,)`` (units of the caller, e.g. [N] or [N, N.m]).
     :param generators: ``G`` of shape ``(n, m)``, one generator per column (half-edges).
@@ -105,9 +107,10 @@ def zonotope(center: np.ndarray, generators: np.ndarray, *, with_vertices: bool 
 
 def zonotope_support(center: np.ndarray, generators: np.ndarray,
                      directions: np.ndarray) -> np.ndarray:
-    """Return the support function of the zonotope at each direction (row).
+    r"""
+    Return the support function of the zonotope at each direction (row).
 
-    .. math:: h_Z(a) = a . c + \\textstyle\\sum_j |a . g_j|
+    .. math:: h_Z(a) = a . c + \textstyle\sum_j |a . g_j|
 
     :param directions: array ``(k, n)``.
     :return: array ``(k,)`` in the units of ``c`` times those of ``a``.
@@ -141,7 +144,8 @@ def _combinations(m: int, k: int) -> tuple[np.ndarray, SubsetTree]:
 
 def _vertex_signs(proj: np.ndarray, g: np.ndarray, in_facet: np.ndarray, vertex_tol: float,
                   A_r: np.ndarray, b_r: np.ndarray) -> np.ndarray:
-    """Return the sign vectors ``(v, m)`` of the vertices, from the facets' sign patterns.
+    """
+    Return the sign vectors ``(v, m)`` of the vertices, from the facets' sign patterns.
 
     A vertex lies on a facet ``a``; there ``t_j = sign(a . g_j)`` except on the generators
     ``Z`` parallel to the facet, where the vertices of the facet zonotope take every sign

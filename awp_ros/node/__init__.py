@@ -1,4 +1,5 @@
-"""The awp_node process: an rclpy shell over awp_ros.ros.pipeline.
+"""
+The awp_node process: an rclpy shell over awp_ros.ros.pipeline.
 
 - :mod:`node`: AwpNode and main() of the awp_node executable.
 - :mod:`parameters`: declaring, validating (on-set) and applying (post-set) its parameters.

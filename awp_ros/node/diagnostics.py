@@ -1,4 +1,5 @@
-"""Counters of the node and the ``diagnostic_msgs/DiagnosticArray`` built from them.
+"""
+Counters of the node and the ``diagnostic_msgs/DiagnosticArray`` built from them.
 
 ``diagnostic_updater`` is not among the PyPI ROS wheels, so this follows its conventions by
 hand: one array per period (1 Hz) on ``/diagnostics``, statuses named ``<node>: <topic>``,
@@ -81,7 +82,8 @@ class _Input:
 
 
 class NodeDiagnostics:
-    """Counters of inputs and evaluations, and the DiagnosticArray built from them.
+    """
+    Counters of inputs and evaluations, and the DiagnosticArray built from them.
 
     :param node_name: prefix of the status names.
     :param hardware_id: the robot name.
@@ -121,7 +123,8 @@ class NodeDiagnostics:
         c.last_wall = wall
 
     def sequence(self, topic: str, seq: int | None) -> int:
-        """Check a message's publication sequence number; return how many are missing.
+        """
+        Check a message's publication sequence number; return how many are missing.
 
         The sequence numbers of one publisher (DDS writer) increase by one per message, so a
         jump of ``k + 1`` means ``k`` messages published but never received: dropped from a
@@ -153,7 +156,8 @@ class NodeDiagnostics:
 
     def evaluated(self, status: int, compute_time_s: float, latency_s: float | None,
                   reason: str = '', stance_legs: int | None = None) -> None:
-        """Count one report of ``status`` (STATUS_* value), its compute time and latency.
+        """
+        Count one report of ``status`` (STATUS_* value), its compute time and latency.
 
         :param reason: the report's status message (kept as the last error or warning).
         :param stance_legs: number of stance legs of an evaluated report (None: not
@@ -181,7 +185,8 @@ class NodeDiagnostics:
     # -- building (per period) -------------------------------------------------------------
 
     def build(self, stamp, wall: float) -> DiagnosticArray:
-        """Return the DiagnosticArray of the period ending at wall time ``wall`` [s].
+        """
+        Return the DiagnosticArray of the period ending at wall time ``wall`` [s].
 
         Resets the per-period counters. ``stamp`` is the header stamp (node clock).
         """

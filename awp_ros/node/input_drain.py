@@ -1,4 +1,5 @@
-"""Take queued input messages straight from their subscriptions, without the executor.
+"""
+Take queued input messages straight from their subscriptions, without the executor.
 
 rclpy's executors spend about 0.2 ms per message on this machine (a wait set rebuilt from
 every subscription, timer, guard condition and parameter service of the node, a task per
@@ -37,7 +38,8 @@ def take(sub: Subscription) -> tuple[object, dict] | None:
 
 
 class InputDrain:
-    """Answer queued joint states in a loop of takes and lean waits (module docstring).
+    """
+    Answer queued joint states in a loop of takes and lean waits (module docstring).
 
     :param inputs: ``(subscription, handler)`` of the inputs taken before each joint state
         (contacts, imu).

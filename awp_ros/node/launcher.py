@@ -1,4 +1,5 @@
-"""Start and stop ``awp_node`` as its own process (the soak test and the node tests).
+"""
+Start and stop ``awp_node`` as its own process (the soak test and the node tests).
 
 :func:`ros_env` keeps discovery on this machine and sets the ROS domain;
 :func:`start_node` runs the console script with parameters, its output going to a log
@@ -20,7 +21,8 @@ __all__ = ['node_command', 'ros_env', 'start_node', 'stop_node']
 
 
 def node_command() -> list[str]:
-    """Return the command of ``awp_node``.
+    """
+    Return the command of ``awp_node``.
 
     The console script beside this interpreter, else the one on PATH, else
     ``python -m awp_ros.node.node``.
@@ -45,7 +47,8 @@ def ros_env(domain_id: int | None = None) -> dict[str, str]:
 def start_node(*, env: dict[str, str], robot: str | None = 'hyq', namespace: str = '',
                params: dict | None = None, ros_args: tuple[str, ...] = (),
                log_path: str | os.PathLike | None = None) -> subprocess.Popen:
-    """Start ``awp_node`` as its own process.
+    """
+    Start ``awp_node`` as its own process.
 
     :param env: the environment (see :func:`ros_env`).
     :param robot: the ``robot`` parameter (config name or YAML path); None leaves it out.
@@ -82,7 +85,8 @@ def start_node(*, env: dict[str, str], robot: str | None = 'hyq', namespace: str
 
 
 def stop_node(proc: subprocess.Popen, timeout_s: float = 10.0) -> str:
-    """Stop a node started by :func:`start_node`; return its log.
+    """
+    Stop a node started by :func:`start_node`; return its log.
 
     SIGINT, then SIGKILL after ``timeout_s`` [s]; a temporary log file is removed.
     """

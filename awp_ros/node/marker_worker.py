@@ -1,4 +1,5 @@
-"""Build the node's RViz markers in a worker process, off the joint-state loop.
+"""
+Build the node's RViz markers in a worker process, off the joint-state loop.
 
 A MarkerArray costs ~3 ms to build (triangulated leg polytopes, the FWP force slice by a
 halfspace intersection, a few hundred ``geometry_msgs/Point`` objects): at 30 Hz a tenth of
@@ -37,7 +38,8 @@ _LENGTH = struct.Struct('<Q')
 
 
 class MarkerWorker:
-    """A process building MarkerArrays, and the threads feeding it and publishing them.
+    """
+    A process building MarkerArrays, and the threads feeding it and publishing them.
 
     :param publish: called with each serialized MarkerArray (``bytes``), from a thread.
     :param on_error: called with the reason of a job that failed, from a thread.

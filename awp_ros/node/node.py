@@ -1,4 +1,5 @@
-"""``awp_node``: recompute and publish the wrench polytopes of a legged robot every cycle.
+"""
+``awp_node``: recompute and publish the wrench polytopes of a legged robot every cycle.
 
 A thin rclpy shell over :class:`awp_ros.ros.pipeline.Pipeline` (which the offline replay runs
 too, so both produce the same messages)::
@@ -56,8 +57,7 @@ import argparse
 import sys
 import time
 
-from awp_ros_msgs.msg import (ContactState, FeasibilityReport, LegPolytopes,
-                              WrenchPolytope)
+from awp_ros_msgs.msg import ContactState, FeasibilityReport, LegPolytopes, WrenchPolytope
 from diagnostic_msgs.msg import DiagnosticArray
 import rclpy
 from rclpy.clock import Clock, ClockType
@@ -69,12 +69,12 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
-from awp_ros.ros.conversions import error_report, stamp_to_ns
-from awp_ros.node.diagnostics import NodeDiagnostics
 from awp_ros.errors import AwpError
+from awp_ros.node.diagnostics import NodeDiagnostics
 from awp_ros.node.input_drain import InputDrain
 from awp_ros.node.marker_worker import MarkerWorker
 from awp_ros.node.parameters import limit_blas_threads, NodeParameters
+from awp_ros.ros.conversions import error_report, stamp_to_ns
 from awp_ros.ros.pipeline import Pipeline
 from awp_ros.ros.pipeline_params import PipelineParams
 from awp_ros.runtime import freeze_startup_objects, keep_freed_memory
@@ -83,7 +83,8 @@ __all__ = ['AwpNode', 'main']
 
 
 class AwpNode(NodeParameters, Node):
-    """The rclpy node: parameters, QoS, subscriptions, publishers, timers (module docstring).
+    """
+    The rclpy node: parameters, QoS, subscriptions, publishers, timers (module docstring).
 
     :param node_name: the node name (default ``awp_node``).
     :param kwargs: passed to :class:`rclpy.node.Node` (namespace, parameter_overrides, ...).
@@ -288,7 +289,8 @@ class AwpNode(NodeParameters, Node):
 
 
 def _queue_delay(info: dict) -> float:
-    """Return how long a message waited since DDS received it [s] (0 when unknown).
+    """
+    Return how long a message waited since DDS received it [s] (0 when unknown).
 
     ``received_timestamp`` of the message info is taken by the middleware on the system
     clock when the sample arrived, so this is the time spent in the subscription's queue,

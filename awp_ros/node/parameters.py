@@ -1,4 +1,5 @@
-"""The parameters of ``awp_node``: declaration with descriptors, validation, conversion.
+"""
+The parameters of ``awp_node``: declaration with descriptors, validation, conversion.
 
 :class:`NodeParameters` is mixed into :class:`awp_ros.node.node.AwpNode`: it declares the node
 parameters (:data:`NODE_PARAMETER_DOCS`), the pipeline parameters
@@ -20,9 +21,9 @@ from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValu
 from rclpy.parameter import Parameter
 
 from awp_ros.errors import AwpError, ConfigError
+from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.ros.pipeline import Pipeline
 from awp_ros.ros.pipeline_params import PARAMETER_DOCS, PipelineParams
-from awp_ros.robot.config import load_config, RobotConfig
 
 __all__ = ['limit_blas_threads', 'limit_value', 'NODE_PARAMETER_DOCS', 'NodeParameters',
            'ROBOT_PARAMETER_DOCS', 'ROBOT_PREFIXES']
@@ -80,7 +81,8 @@ _FIELDS = {f.name: f for f in fields(PipelineParams)}
 
 
 class NodeParameters:
-    """The parameter methods of :class:`awp_ros.node.node.AwpNode` (a mixin of an rclpy Node).
+    """
+    The parameter methods of :class:`awp_ros.node.node.AwpNode` (a mixin of an rclpy Node).
 
     Uses the node's ``config_errors`` (list of startup problems), ``model_error``,
     ``pipeline``, ``diagnostics``, ``max_queue_delay_s`` and ``_limits_declared``; sets
@@ -168,7 +170,8 @@ class NodeParameters:
         return out
 
     def _declare_torque_limits(self) -> None:
-        """Declare ``torque_limits.<joint>`` for every leg joint, with the limit in use.
+        """
+        Declare ``torque_limits.<joint>`` for every leg joint, with the limit in use.
 
         One call for all of them: after a runtime model recovery the on-set callback then
         runs once (the values are the ones in use, so nothing changes).
@@ -266,7 +269,8 @@ def limit_value(pair) -> float | list[float]:
 
 
 def limit_blas_threads(n: int, logger):
-    """Limit the BLAS thread pools of this process to ``n`` threads (0: leave them).
+    """
+    Limit the BLAS thread pools of this process to ``n`` threads (0: leave them).
 
     OpenBLAS threads busy-wait between calls; on a machine whose cores are shared with the
     DDS threads, the message publisher and other processes they stalled single FWS

@@ -1,4 +1,5 @@
-"""The robot (ROS-free): configuration, Pinocchio model, state.
+"""
+The robot (ROS-free): configuration, Pinocchio model, state.
 
 - :mod:`config`: RobotConfig, config files and their lookup.
 - :mod:`model`: the Pinocchio model, leg chains, kinematics and dynamics terms.

@@ -1,4 +1,5 @@
-"""Robot configurations: which frames are feet, which joints drive them, their limits.
+"""
+Robot configurations: which frames are feet, which joints drive them, their limits.
 
 One YAML file per robot is at the same time a ROS 2 parameters file, so the node runs
 with ``--params-file config/hyq.yaml`` and the library reads the same file::
@@ -47,7 +48,8 @@ _ENV_CONFIG_DIR = 'AWP_ROS_CONFIG_DIR'
 
 @dataclass(frozen=True)
 class RobotConfig:
-    """The static description of a legged robot for the feasibility core.
+    """
+    The static description of a legged robot for the feasibility core.
 
     Frames: ``contact_normal`` is expressed in the world frame (REP 103, z up).
     Units: torque limits [N.m] (or [N] for prismatic joints), postures [rad].
@@ -104,7 +106,8 @@ class RobotConfig:
     @classmethod
     def from_dict(cls, params: Mapping, base_dir: str | os.PathLike | None = None
                   ) -> RobotConfig:
-        """Build a config from parameters, nested or with dotted keys.
+        """
+        Build a config from parameters, nested or with dotted keys.
 
         Accepts the whole parameters file (``{'/**': {'ros__parameters': {...}}}``), the
         ``ros__parameters`` mapping itself, or the flat mapping rclpy exposes
@@ -165,7 +168,8 @@ class RobotConfig:
 
 
 def config_dirs() -> list[Path]:
-    """Return the folders searched for ``<name>.yaml``, in order.
+    """
+    Return the folders searched for ``<name>.yaml``, in order.
 
     ``$AWP_ROS_CONFIG_DIR``, ``<sys.prefix>/share/awp_ros/config``, the ament index
     share folder of ``awp_ros`` when ``ament_index_python`` finds one, then the source
@@ -207,7 +211,8 @@ def available_configs() -> list[str]:
 
 
 def load_config(name_or_path: str | os.PathLike = DEFAULT_ROBOT) -> RobotConfig:
-    """Load a robot config by name (``'hyq'``) or by path to a YAML file.
+    """
+    Load a robot config by name (``'hyq'``) or by path to a YAML file.
 
     :raises ConfigError: no such file or name (the message lists the known names).
     """

@@ -1,19 +1,20 @@
-"""The Pinocchio model of a legged robot and its per-cycle kinematic/dynamic quantities.
+r"""
+The Pinocchio model of a legged robot and its per-cycle kinematic/dynamic quantities.
 
 The base is a free flyer placed at the world origin with the measured orientation (the
-margins do not depend on the base position). For a state :math:`(q, \\dot q, \\ddot q)`:
+margins do not depend on the base position). For a state :math:`(q, \dot q, \ddot q)`:
 
 .. math::
 
-    (1)\\quad \\tau = \\underbrace{M_b^T \\ddot q_b + M \\ddot q + c + g}_{\\text{bias}
-        = \\mathrm{rnea}(q, \\dot q, \\ddot q)} - \\sum_k J_k^T f_k
-    \\qquad \\text{(seed eq. 1)}
+    (1)\quad \tau = \underbrace{M_b^T \ddot q_b + M \ddot q + c + g}_{\text{bias}
+        = \mathrm{rnea}(q, \dot q, \ddot q)} - \sum_k J_k^T f_k
+    \qquad \text{(seed eq. 1)}
 
-    (2)\\quad w = \\begin{bmatrix} m (\\ddot c - g) \\\\ \\dot L \\end{bmatrix}
-        = \\dot h_G - \\begin{bmatrix} m g \\\\ 0 \\end{bmatrix}
+    (2)\quad w = \begin{bmatrix} m (\ddot c - g) \\ \dot L \end{bmatrix}
+        = \dot h_G - \begin{bmatrix} m g \\ 0 \end{bmatrix}
 
 with :math:`J_k` (3 x n_k) the translational LOCAL_WORLD_ALIGNED Jacobian of foot k
-w.r.t. its leg's joints and :math:`\\dot h_G` the centroidal momentum rate (world axes,
+w.r.t. its leg's joints and :math:`\dot h_G` the centroidal momentum rate (world axes,
 about the CoM). Foot positions are returned relative to the CoM, world axes [m].
 """
 
@@ -42,7 +43,8 @@ _ERD_SHARE = ('share', 'example-robot-data')
 
 
 def example_robot_data_dirs() -> list[Path]:
-    """Return the ``share/example-robot-data`` folders found on this machine.
+    """
+    Return the ``share/example-robot-data`` folders found on this machine.
 
     Looked up, in order: the installed ``example-robot-data`` distribution (its cmeel
     prefix), ``cmeel.prefix`` in every site-packages folder, ``<prefix>/share`` of
@@ -74,7 +76,8 @@ def example_robot_data_dirs() -> list[Path]:
 
 
 def resolve_urdf(urdf: str, base_dir: str | os.PathLike | None = None) -> tuple[str, str]:
-    """Resolve a config's ``urdf`` entry to ``('xml', text)`` or ``('file', path)``.
+    """
+    Resolve a config's ``urdf`` entry to ``('xml', text)`` or ``('file', path)``.
 
     :param urdf: URDF XML, ``example-robot-data://<rel>``, ``file://<path>`` or a path.
     :param base_dir: folder relative paths are relative to (the YAML's folder).
@@ -117,7 +120,8 @@ class LegInfo:
 
 @dataclass
 class Kinematics:
-    """Per-cycle quantities of the stance legs (world axes, origin at the CoM).
+    """
+    Per-cycle quantities of the stance legs (world axes, origin at the CoM).
 
     ``p_foot__com`` (K, 3) [m], ``J`` list of (3, n_k) translational Jacobians [m/rad],
     ``bias`` list of (n_k,) [N.m], ``wrench`` (6,) gravito-inertial wrench [N, N.m].
@@ -132,7 +136,8 @@ class Kinematics:
 
 
 class RobotModel:
-    """A Pinocchio free-flyer model with the legs of a :class:`RobotConfig`.
+    """
+    A Pinocchio free-flyer model with the legs of a :class:`RobotConfig`.
 
     :param config: the robot config.
     :raises ModelError: the URDF cannot be parsed.
@@ -247,7 +252,8 @@ class RobotModel:
                    quaternion: np.ndarray | None = None,
                    v: np.ndarray | None = None,
                    a: np.ndarray | None = None) -> Kinematics:
-        """Update the model and return the stance legs' quantities (equations 1-2).
+        """
+        Update the model and return the stance legs' quantities (equations 1-2).
 
         :param q_joints: joint positions in ``joint_names`` order [rad or m].
         :param stance: the stance feet, in the order of the outputs.

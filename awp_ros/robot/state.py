@@ -1,4 +1,5 @@
-"""The robot state one evaluation answers, and its validation.
+"""
+The robot state one evaluation answers, and its validation.
 
 Conventions (SI units):
 
@@ -54,7 +55,8 @@ class RobotState:
 
 @dataclass
 class ResolvedState:
-    """A validated state as arrays, in the model's joint order.
+    """
+    A validated state as arrays, in the model's joint order.
 
     ``q`` (n_j,), ``v`` / ``a`` (6 + n_j,) in Pinocchio's convention (base part in the base
     frame, spatial acceleration) or None, ``quaternion`` (4,) unit ``[x, y, z, w]``,
@@ -77,7 +79,8 @@ def resolve_state(state: RobotState, joint_names: Sequence[str], feet: Sequence[
                   default_mu: float = 0.7,
                   position_limits: tuple[np.ndarray, np.ndarray] | None = None,
                   unit_tol: float = 1e-6) -> ResolvedState:
-    """Validate ``state`` against a model's joints and feet and return arrays.
+    """
+    Validate ``state`` against a model's joints and feet and return arrays.
 
     :param state: the state.
     :param joint_names: the model's joint names in q order.

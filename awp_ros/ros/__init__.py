@@ -1,4 +1,5 @@
-"""ROS 2 messages around the core, without a node: what awp_node and awp_replay share.
+"""
+ROS 2 messages around the core, without a node: what awp_node and awp_replay share.
 
 - :mod:`conversions`: messages <-> core values (states, polytopes, reports).
 - :mod:`markers`: visualization_msgs/MarkerArray of a result.

@@ -1,4 +1,5 @@
-"""Conversions between ROS messages and the core's objects (the node's and replay's glue).
+"""
+Conversions between ROS messages and the core's objects (the node's and replay's glue).
 
 - :class:`~awp_ros.geometry.polytope.Polytope` <-> ``awp_ros_msgs/Polytope``: numpy arrays go into the
   ``float64[]`` fields as ``array.array('d')`` built from their bytes (no per-element Python
@@ -77,7 +78,8 @@ def _doubles(x: np.ndarray) -> array:
 
 
 def polytope_to_msg(P: Polytope, msg: PolytopeMsg | None = None) -> PolytopeMsg:
-    """Fill an ``awp_ros_msgs/Polytope`` from a :class:`Polytope` (units unchanged).
+    """
+    Fill an ``awp_ros_msgs/Polytope`` from a :class:`Polytope` (units unchanged).
 
     :param P: the polytope, ambient dimension n (3: forces [N]; 6: wrenches [N, N.m]).
     :param msg: a message to fill in place (default: a new one).
@@ -96,7 +98,8 @@ def polytope_to_msg(P: Polytope, msg: PolytopeMsg | None = None) -> PolytopeMsg:
 
 
 def polytope_from_msg(msg: PolytopeMsg) -> Polytope:
-    """Return the :class:`Polytope` of an ``awp_ros_msgs/Polytope`` (inverse of the above).
+    """
+    Return the :class:`Polytope` of an ``awp_ros_msgs/Polytope`` (inverse of the above).
 
     :raises InputError: when an array length does not fit ``ambient_dimension`` and
         ``dimension``.
@@ -132,7 +135,8 @@ def _matrix(values, n: int, name: str) -> np.ndarray:
 
 def wrench_polytope_msg(header: Header, kind: str, stance: Sequence[str],
                         reference_point: np.ndarray, P: Polytope) -> WrenchPolytope:
-    """Return a ``WrenchPolytope`` message.
+    """
+    Return a ``WrenchPolytope`` message.
 
     :param header: stamp of the answered joint state; frame_id the CoM-centred,
         world-aligned wrench frame.
@@ -191,7 +195,8 @@ def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float
                fws: WrenchSetResult | None = None, fws_stamp: Time | None = None,
                status: int | None = None, status_message: str | None = None
                ) -> FeasibilityReport:
-    """Return the ``FeasibilityReport`` of an evaluation.
+    """
+    Return the ``FeasibilityReport`` of an evaluation.
 
     ``feasible`` is ``fwp_feasible and fws_feasible``: equal to ``fws_feasible`` when the FWS
     was computed for this message (FWS is a subset of FWP) and never true when the current
@@ -238,7 +243,8 @@ def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float
 
 def error_report(header: Header, status: int, reason: str, *, compute_time: float = 0.0
                  ) -> FeasibilityReport:
-    """Return a report for a message that was not evaluated: margins NaN, not feasible.
+    """
+    Return a report for a message that was not evaluated: margins NaN, not feasible.
 
     :param status: ``STATUS_INVALID_INPUT``, ``STATUS_STALE_INPUT`` or ``STATUS_ERROR``.
     :param reason: human-readable reason (names the bad value).
@@ -264,7 +270,8 @@ def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
                           use_velocities: bool = True,
                           joint_names: Collection[str] | None = None,
                           notes: list[str] | None = None) -> RobotState:
-    """Return the :class:`RobotState` of one joint-state message and the latest inputs.
+    """
+    Return the :class:`RobotState` of one joint-state message and the latest inputs.
 
     :param joints: ``name`` and ``position`` [rad] of every joint (same length); ``velocity``
         [rad/s] is used when ``use_velocities`` and it has one entry per name (empty = none).

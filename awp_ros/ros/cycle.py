@@ -9,8 +9,8 @@ import numpy as np
 from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
-from awp_ros.ros.conversions import leg_polytopes_msg, wrench_polytope_msg
 from awp_ros.evaluation.result import FeasibilityResult, WrenchSetResult
+from awp_ros.ros.conversions import leg_polytopes_msg, wrench_polytope_msg
 from awp_ros.ros.markers import build_markers, error_markers, MarkerStyle
 
 __all__ = ['Cycle', 'OUTPUTS']
@@ -20,7 +20,8 @@ OUTPUTS = ('report', 'awp', 'fwp', 'fws', 'leg_polytopes', 'markers')
 
 
 class Cycle:
-    """The outputs answering one joint-state message (built on demand, then cached).
+    """
+    The outputs answering one joint-state message (built on demand, then cached).
 
     :ivar header: stamp of the joint state, frame_id ``wrench_frame_id``.
     :ivar report: the FeasibilityReport (always).
@@ -87,7 +88,8 @@ class Cycle:
         return self._cache['markers']
 
     def marker_job(self) -> tuple:
-        """Return ``(function, args, kwargs)`` building :meth:`markers` (picklable).
+        """
+        Return ``(function, args, kwargs)`` building :meth:`markers` (picklable).
 
         What :class:`awp_ros.node.marker_worker.MarkerWorker` runs in its process. The wrench
         sets whose margins only label the markers travel without their polytopes.

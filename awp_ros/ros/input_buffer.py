@@ -1,4 +1,5 @@
-"""Pairing of the contacts and imu inputs with joint states, by stamp.
+"""
+Pairing of the contacts and imu inputs with joint states, by stamp.
 
 :class:`InputBuffer` keeps the received messages of one input topic and picks the one
 current at a joint state's stamp; :func:`stale_reason` says why a picked message cannot be
@@ -16,7 +17,8 @@ __all__ = ['InputBuffer', 'stale_reason']
 
 
 class InputBuffer:
-    """The received messages of one input topic not yet passed by a joint state's stamp.
+    """
+    The received messages of one input topic not yet passed by a joint state's stamp.
 
     Kept as parallel lists from ``head`` on (stamps [ns], messages) so that a node lagging
     behind its joint states, which holds the contacts of the whole lag, finds the one to
@@ -46,7 +48,8 @@ class InputBuffer:
         self._compact()
 
     def pick(self, ns: int):
-        """Return the newest message stamped at or before ``ns``, else the earliest one.
+        """
+        Return the newest message stamped at or before ``ns``, else the earliest one.
 
         Messages older than the one returned are dropped; None when empty.
         """
@@ -72,7 +75,8 @@ class InputBuffer:
 
 
 def stale_reason(ns: int, inputs: Sequence[tuple[str, object]], stale_timeout_s: float) -> str:
-    """Return why the inputs cannot be used with a joint state at ``ns`` [ns], or ''.
+    """
+    Return why the inputs cannot be used with a joint state at ``ns`` [ns], or ''.
 
     :param inputs: (topic, picked message or None) pairs, checked in order.
     :param stale_timeout_s: largest stamp difference either way [s]; 0 disables the check.

@@ -1,4 +1,5 @@
-"""RViz / Foxglove markers of one evaluation (``visualization_msgs/MarkerArray``).
+r"""
+RViz / Foxglove markers of one evaluation (``visualization_msgs/MarkerArray``).
 
 What is drawn (the seed's Fig. 1 plus the wrench), each namespace stating its force scale
 ``s`` [m/N] so that a length in the scene reads back as a force:
@@ -11,7 +12,7 @@ What is drawn (the seed's Fig. 1 plus the wrench), each namespace stating its fo
 - ``gravito_inertial_wrench [s m/N]`` (orange ``ARROW`` from the CoM to ``c + s f``) and
   ``gravito_inertial_moment [s_m m/(N.m)]`` (purple), the wrench the contacts must supply.
 - ``fwp_force_slice [s m/N]`` (green): the **force slice of the FWP at the current moment**,
-  :math:`\\{f : [f; \\tau_{now}] \\in FWP\\}`, drawn from the CoM: the wrench arrow's tip is
+  :math:`\{f : [f; \tau_{now}] \in FWP\}`, drawn from the CoM: the wrench arrow's tip is
   inside it exactly when the wrench is in the FWP. It is 3D with 3-4 stance legs, a polygon
   with 2 legs (the FWP is 5D), at most a point with 1 leg (not drawn).
 - ``com`` (white ``SPHERE``), ``stance_feet`` (white ``SPHERE_LIST``) and ``margins``
@@ -37,9 +38,9 @@ from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
 from std_msgs.msg import ColorRGBA, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from awp_ros.wrench.contact_wrench_cone import friction_pyramids
 from awp_ros.evaluation.result import FeasibilityResult, WrenchSetResult
 from awp_ros.geometry.polytope import Polytope
+from awp_ros.wrench.contact_wrench_cone import friction_pyramids
 
 __all__ = ['MarkerStyle', 'build_markers', 'error_markers', 'force_slice', 'hull_triangles',
            'quaternion_matrix']
@@ -60,7 +61,8 @@ _COLORS = {
 
 @dataclass(frozen=True)
 class MarkerStyle:
-    """Sizes of the markers.
+    """
+    Sizes of the markers.
 
     :ivar force_scale: scene length per newton [m/N] (forces drawn as ``p + s f``).
     :ivar moment_scale: scene length per newton-metre [m/(N.m)] for the moment arrow.
@@ -89,7 +91,8 @@ def quaternion_matrix(q: np.ndarray) -> np.ndarray:
 
 
 def hull_triangles(points: np.ndarray, *, flat_tol: float = 1e-9) -> np.ndarray:
-    """Return a triangulation ``(T, 3, 3)`` of the boundary of the convex hull of points.
+    """
+    Return a triangulation ``(T, 3, 3)`` of the boundary of the convex hull of points.
 
     3D hulls: qhull facets (outward winding). Flat (2D) hulls: the polygon fanned from its
     first vertex, both windings so that it shows from either side. Lower dimensions and
@@ -127,12 +130,13 @@ def hull_triangles(points: np.ndarray, *, flat_tol: float = 1e-9) -> np.ndarray:
 
 def force_slice(P: Polytope, tau: np.ndarray, *, interior: np.ndarray | None = None,
                 tol: float = 1e-9) -> np.ndarray:
-    """Return the vertices ``(k, 3)`` of the force slice of a 6D wrench polytope.
+    r"""
+    Return the vertices ``(k, 3)`` of the force slice of a 6D wrench polytope.
 
-    .. math:: S(\\tau) = \\{f \\in \\mathbb{R}^3 : [f; \\tau] \\in P\\}
+    .. math:: S(\tau) = \{f \in \mathbb{R}^3 : [f; \tau] \in P\}
 
     with ``P = {w : A w <= b, w = o + U y}``. Writing ``w = o + U (y_0 + N z)`` with
-    ``y_0`` solving the moment rows ``U_\\tau y = \\tau - o_\\tau`` and ``N`` a basis of
+    ``y_0`` solving the moment rows ``U_\tau y = \tau - o_\tau`` and ``N`` a basis of
     their null space, ``S`` is the polytope ``{z : A U N z <= b - A (o + U y_0)}`` mapped to
     forces; its vertices come from qhull's halfspace intersection (dimension of ``z`` >= 2),
     a ratio test (1) or a membership test (0).
@@ -251,7 +255,8 @@ def build_markers(result: FeasibilityResult, header: Header, *,
                   pyramid_sides: int = 4, rotation: np.ndarray | None = None,
                   translation: np.ndarray | None = None, status_text: str = ''
                   ) -> MarkerArray:
-    """Return the markers of one evaluation (see the module docstring).
+    """
+    Return the markers of one evaluation (see the module docstring).
 
     :param result: the evaluation (wrench [N, N.m] and leg polytopes [N], CoM-centred
         world-aligned frame).

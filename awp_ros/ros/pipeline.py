@@ -1,4 +1,5 @@
-"""The message-level pipeline shared by ``awp_node`` and the offline replay.
+"""
+The message-level pipeline shared by ``awp_node`` and the offline replay.
 
 Messages in, messages out, no rclpy node inside: feed :meth:`Pipeline.on_contacts`,
 :meth:`Pipeline.on_imu` and :meth:`Pipeline.on_joint_state` the input messages in arrival
@@ -45,15 +46,15 @@ import pinocchio as pin
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 
-from awp_ros.ros.conversions import error_report, report_msg, robot_state_from_msgs, stamp_to_ns
-from awp_ros.ros.cycle import Cycle
 from awp_ros.errors import AwpError, ConfigError, InputError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.evaluation.result import WrenchSetResult
+from awp_ros.robot.config import RobotConfig
+from awp_ros.ros.conversions import error_report, report_msg, robot_state_from_msgs, stamp_to_ns
+from awp_ros.ros.cycle import Cycle
 from awp_ros.ros.input_buffer import InputBuffer, stale_reason
 from awp_ros.ros.markers import MarkerStyle, quaternion_matrix
 from awp_ros.ros.pipeline_params import PipelineParams, ros_parameters
-from awp_ros.robot.config import RobotConfig
 
 __all__ = ['MAX_REASON_CHARS', 'Pipeline']
 
@@ -64,7 +65,8 @@ MAX_REASON_CHARS = 1000
 
 
 class Pipeline:
-    """Turn input messages into output messages (see the module docstring).
+    """
+    Turn input messages into output messages (see the module docstring).
 
     :param config: the robot config (a name or YAML path is loaded by the evaluator).
     :param params: the pipeline parameters.
@@ -91,7 +93,8 @@ class Pipeline:
 
     @classmethod
     def from_parameters(cls, params: Mapping, *, robot: str | None = None) -> Pipeline:
-        """Build a pipeline from a parameters file's mapping (what the node reads).
+        """
+        Build a pipeline from a parameters file's mapping (what the node reads).
 
         The robot part comes from ``robot`` (a config name or path; default the mapping's
         own ``robot`` key, else the mapping itself when it has ``robot_name``, else
@@ -125,7 +128,8 @@ class Pipeline:
         return ''
 
     def set_config(self, config: RobotConfig) -> None:
-        """Use a new robot config from the next message on (rebuilds the evaluator).
+        """
+        Use a new robot config from the next message on (rebuilds the evaluator).
 
         :raises ConfigError, ModelError: the config is unusable (the old one stays).
         """
@@ -141,7 +145,8 @@ class Pipeline:
         self._latest_fws_stance = None
 
     def set_params(self, params: PipelineParams) -> None:
-        """Use new pipeline parameters from the next message on.
+        """
+        Use new pipeline parameters from the next message on.
 
         :raises ConfigError: ``marker_frame_id`` is neither '' nor the wrench frame nor the
             root link.
@@ -168,7 +173,8 @@ class Pipeline:
         self._imu.add(msg)
 
     def on_joint_state(self, msg: JointState, notes: Sequence[str] = ()) -> Cycle:
-        """Evaluate one joint-state message and return its outputs.
+        """
+        Evaluate one joint-state message and return its outputs.
 
         :param notes: warnings of the caller about this message (e.g. messages lost
             before it), put first in the report's ``status_message``.
@@ -259,7 +265,8 @@ def _due(last_ns: int | None, ns: int, rate_hz: float) -> bool:
 
 
 def _advance(last_ns: int | None, ns: int, rate_hz: float) -> int:
-    """Return the new reference stamp of a throttle that is due at ``ns``.
+    """
+    Return the new reference stamp of a throttle that is due at ``ns``.
 
     Steps by whole periods while ``ns`` is within one period of the schedule, so that the
     average rate is ``rate_hz`` even when inputs do not fall on the period; restarts at

@@ -1,4 +1,5 @@
-"""The pipeline's parameters: :class:`PipelineParams` and their descriptions.
+"""
+The pipeline's parameters: :class:`PipelineParams` and their descriptions.
 
 Shared by ``awp_node`` (its parameter descriptors) and the offline replay (a params file).
 """
@@ -46,7 +47,8 @@ class PipelineParams:
 
     @classmethod
     def from_dict(cls, params: Mapping) -> PipelineParams:
-        """Read the known keys of a parameters mapping (a params file, its ``ros__parameters``
+        """
+        Read the known keys of a parameters mapping (a params file, its ``ros__parameters``
         section, or a flat mapping); other keys are ignored.
 
         :raises ConfigError: a value of the wrong type or range.

@@ -1,4 +1,5 @@
-"""Load tests of awp_node over real DDS: python -m awp_ros.soak.
+"""
+Load tests of awp_node over real DDS: python -m awp_ros.soak.
 
 - :mod:`soak`: run_soak and main().
 - :mod:`driver`: the joint-state publisher process.

@@ -1,4 +1,5 @@
-"""The driver process of the soak test (``python -m awp_ros.soak --drive ...``).
+"""
+The driver process of the soak test (``python -m awp_ros.soak --drive ...``).
 
 :func:`drive` publishes gait joint states (and contacts) at a fixed rate on a schedule,
 stamped with the wall clock when published, and saves the stamps it sent;
@@ -26,7 +27,8 @@ def _stamp(msg, ns: int):
 def drive(*, rate_hz: float, duration_s: float, robot: str, namespace: str,
           stamps_path: str | None, contacts_rate_hz: float = 100.0, depth: int = 100000,
           match_timeout_s: float = 60.0, topics: str = 'both') -> dict:
-    """Publish gait joint states at ``rate_hz`` for ``duration_s`` (the driver process).
+    """
+    Publish gait joint states at ``rate_hz`` for ``duration_s`` (the driver process).
 
     Waits until the node's subscriptions match, publishes, waits until every message was
     acknowledged, saves the sent stamps [ns] (``np.save``) and returns a summary.

@@ -14,7 +14,8 @@ _CLK_TCK = os.sysconf('SC_CLK_TCK')
 
 
 def proc_usage(pid: int) -> tuple[float, int]:
-    """Return a process's CPU time (user + system) [s] and resident set size [B].
+    """
+    Return a process's CPU time (user + system) [s] and resident set size [B].
 
     From ``/proc/<pid>/stat`` (fields 14 and 15, in clock ticks) and the ``VmRSS`` line of
     ``/proc/<pid>/status`` [kB].
@@ -33,7 +34,8 @@ def proc_usage(pid: int) -> tuple[float, int]:
 
 
 class ProcessMonitor:
-    """Sample a process's CPU time and RSS every ``period_s`` in a background thread.
+    """
+    Sample a process's CPU time and RSS every ``period_s`` in a background thread.
 
     ``samples`` rows: (wall time [s, time.monotonic], CPU time [s], RSS [B]).
     """

@@ -1,4 +1,5 @@
-"""A DDS participant of our own: :class:`Probe` (publish, subscribe, spun in a thread).
+"""
+A DDS participant of our own: :class:`Probe` (publish, subscribe, spun in a thread).
 
 Used by the soak test, its driver and the node tests to talk to ``awp_node`` over real DDS;
 :func:`wait_until` polls for the discovery and the messages they wait for.
@@ -13,7 +14,8 @@ __all__ = ['Probe', 'wait_until']
 
 
 def wait_until(predicate, timeout_s: float, what: str, *, poll_s: float = 0.02) -> None:
-    """Poll ``predicate()`` until true; raise TimeoutError naming ``what`` after a while.
+    """
+    Poll ``predicate()`` until true; raise TimeoutError naming ``what`` after a while.
 
     :param timeout_s: how long to poll [s].
     """
@@ -26,7 +28,8 @@ def wait_until(predicate, timeout_s: float, what: str, *, poll_s: float = 0.02) 
 
 
 class Probe:
-    """One DDS participant (an rclpy Context on ``domain_id``) spun in a background thread.
+    """
+    One DDS participant (an rclpy Context on ``domain_id``) spun in a background thread.
 
     Publishers and subscriptions are reliable, keep last ``depth``. Received messages are
     appended to the list :meth:`subscribe` returns (under ``lock``), or passed to a
@@ -65,7 +68,8 @@ class Probe:
 
     def subscribe(self, mtype, topic: str, callback=None, depth: int = 1000, *,
                   raw: bool = False) -> list:
-        """Subscribe to ``topic``; return the list the messages are appended to.
+        """
+        Subscribe to ``topic``; return the list the messages are appended to.
 
         :param raw: receive the serialized bytes (no deserialization: a consumer that only
             counts, or stores, big messages).

@@ -1,4 +1,5 @@
-"""What a soak test measured: :class:`SoakResult`, its table, and the figures behind it.
+"""
+What a soak test measured: :class:`SoakResult`, its table, and the figures behind it.
 
 The ``fill_*`` functions turn the raw measurements of :func:`awp_ros.soak.soak.run_soak` (the
 monitor's CPU/RSS samples, report reception times, the node's diagnostics) into the
@@ -118,7 +119,8 @@ def fill_usage(result: SoakResult, s: np.ndarray, t_start: float, t_end: float,
 
 def fill_timeline(result: SoakResult, s: np.ndarray, t_start: float, wall0_ns: int,
               rcv: np.ndarray, latency: np.ndarray, step: float) -> None:
-    """Fill the table rows, one per ``step`` [s] from the drive's start to the last report.
+    """
+    Fill the table rows, one per ``step`` [s] from the drive's start to the last report.
 
     ``t_start`` is the start on the monitor's clock, ``wall0_ns`` on the wall clock.
     """

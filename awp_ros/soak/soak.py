@@ -1,4 +1,5 @@
-"""Soak test of ``awp_node``: drive it at a fixed rate for a while; count what it loses.
+"""
+Soak test of ``awp_node``: drive it at a fixed rate for a while; count what it loses.
 
 ::
 
@@ -46,11 +47,12 @@ import time
 
 import numpy as np
 
-from awp_ros.soak.probe import Probe, wait_until
-from awp_ros.soak.monitor import ProcessMonitor
-from awp_ros.soak.driver import drive, driver_command
 from awp_ros.node.launcher import ros_env, start_node, stop_node
-from awp_ros.soak.result import fill_node_diagnostics, fill_timeline, fill_usage, percentiles, SoakResult
+from awp_ros.soak.driver import drive, driver_command
+from awp_ros.soak.monitor import ProcessMonitor
+from awp_ros.soak.probe import Probe, wait_until
+from awp_ros.soak.result import (fill_node_diagnostics, fill_timeline, fill_usage, percentiles,
+                                 SoakResult)
 
 __all__ = ['main', 'run_soak']
 
@@ -73,7 +75,8 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
              drain_timeout_s: float | None = None, stall_timeout_s: float = 20.0,
              params: dict | None = None, timeline_step_s: float | None = None,
              subscribe: tuple[str, ...] = ()) -> SoakResult:
-    """Run one soak (see the module docstring) and return what it measured.
+    """
+    Run one soak (see the module docstring) and return what it measured.
 
     :param rate_hz: joint-state rate [Hz].
     :param duration_s: drive duration [s].

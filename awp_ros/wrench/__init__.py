@@ -1,4 +1,5 @@
-"""Wrench sets of a legged robot (ROS-free): the seed paper's sets and the FWS.
+"""
+Wrench sets of a legged robot (ROS-free): the seed paper's sets and the FWS.
 
 - :mod:`force_polytope`: per-leg force polytope from joint-torque limits, seed eq. (1).
 - :mod:`friction_polytope`: force polytope cut by the friction pyramid (and n.f >= 0).

@@ -1,4 +1,5 @@
-"""Friction pyramids and the exact H-representation of the contact wrench cone (CWC).
+"""
+Friction pyramids and the exact H-representation of the contact wrench cone (CWC).
 
 Frames: world-aligned axes (REP 103), origin at the robot's CoM; forces [N], moments [N.m],
 foot positions [m] relative to the CoM. Contact force f_k = force of the ground on the robot.
@@ -38,8 +39,8 @@ from itertools import product
 import numpy as np
 
 from awp_ros.errors import InputError
-from awp_ros.geometry.linalg import (cross3, distinct_columns, orthonormal_span, subset_cross_products,
-                            subset_tree, SubsetTree, workspace)
+from awp_ros.geometry.linalg import (cross3, distinct_columns, orthonormal_span,
+                                     subset_cross_products, subset_tree, SubsetTree, workspace)
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.wrench.wrench_polytope import lift_points
 
@@ -52,10 +53,11 @@ __all__ = ['contact_wrench_cone', 'friction_pyramid', 'friction_pyramids', 'lift
 
 def friction_pyramid(normal: np.ndarray, mu: float, sides: int = 4, *,
                      parallel_tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
-    """Return the unit rays and the unit outward facet normals of a friction pyramid, eq. (1).
+    r"""
+    Return the unit rays and the unit outward facet normals of a friction pyramid, eq. (1).
 
-    .. math:: \\{f : (\\cos\\theta_i t_1 + \\sin\\theta_i t_2) \\cdot f \\le
-              \\mu \\cos(\\pi/N)\\, n \\cdot f,\\; i = 0..N-1\\}
+    .. math:: \{f : (\cos\theta_i t_1 + \sin\theta_i t_2) \cdot f \le
+              \mu \cos(\pi/N)\, n \cdot f,\; i = 0..N-1\}
 
     inscribed in the friction cone of coefficient ``mu`` around the unit contact normal
     ``n`` (world frame), with ``t1`` the normalised projection of world x on the contact
@@ -78,7 +80,8 @@ def friction_pyramid(normal: np.ndarray, mu: float, sides: int = 4, *,
 
 def friction_pyramids(normals: np.ndarray, mu: np.ndarray, sides: int = 4, *,
                       parallel_tol: float = 1e-9) -> tuple[np.ndarray, np.ndarray]:
-    """Return :func:`friction_pyramid` for K contacts at once, eq. (1).
+    """
+    Return :func:`friction_pyramid` for K contacts at once, eq. (1).
 
     :param normals: contact normals ``(K, 3)`` (world frame, into the robot), any length.
     :param mu: friction coefficients ``(K,)``, each >= 0.
@@ -138,10 +141,11 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
                         span_tol: float = 1e-9, rank_tol: float = 1e-9,
                         side_tol: float = 1e-9,
                         frictionless_tol: float = 1e-9) -> Polytope:
-    """Return the exact H-representation of the contact wrench cone, eqs. (3-4).
+    r"""
+    Return the exact H-representation of the contact wrench cone, eqs. (3-4).
 
-    .. math:: \\mathrm{CWC} = \\{\\textstyle\\sum_k L_k f_k : f_k \\in \\mathcal{P}_k\\}
-              = \\{w \\in \\mathrm{span} : a_i \\cdot w \\le 0\\}
+    .. math:: \mathrm{CWC} = \{\textstyle\sum_k L_k f_k : f_k \in \mathcal{P}_k\}
+              = \{w \in \mathrm{span} : a_i \cdot w \le 0\}
 
     :param positions: foot positions ``(K, 3)`` [m] relative to the CoM, world axes.
     :param normals: contact normals ``(K, 3)`` (world frame, into the robot).
@@ -209,7 +213,8 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
 
 @lru_cache(maxsize=256)
 def _cached_rays(normals: bytes, mu: bytes, sides: int) -> np.ndarray:
-    """Return the pyramid rays ``(K, N, 3)`` of :func:`friction_pyramids`, memoised.
+    """
+    Return the pyramid rays ``(K, N, 3)`` of :func:`friction_pyramids`, memoised.
 
     Contact normals and friction coefficients rarely change between control cycles; the
     key is their exact bytes, so a hit returns exactly what the computation would.
@@ -223,7 +228,8 @@ def _cached_rays(normals: bytes, mu: bytes, sides: int) -> np.ndarray:
 @lru_cache(maxsize=64)
 def _candidates(K: int, sides: int, r: int,
                 frictionless: tuple[bool, ...]) -> tuple[np.ndarray, SubsetTree]:
-    """Return the candidate ray subsets of eq. (4), ``(m, r - 1)``, and their prefix tree.
+    """
+    Return the candidate ray subsets of eq. (4), ``(m, r - 1)``, and their prefix tree.
 
     Within a subset the larger faces come first (whole pyramids, then 2D faces, then rays),
     so that many candidates share their first vectors (fewer distinct tree prefixes).

@@ -1,13 +1,14 @@
-"""Exact H-representation of a Minkowski sum of lifted 3D polytopes: the FWS (and AWP, any leg).
+r"""
+Exact H-representation of a Minkowski sum of lifted 3D polytopes: the FWS (and AWP, any leg).
 
 For stance feet at ``p_k`` [m] relative to the CoM (world-aligned axes) and per-leg force
 polytopes ``Q_k`` [N] given by their vertices, the set is
 
 .. math::
 
-    S = \\sum_k L_k Q_k \\subset \\mathbb{R}^6, \\qquad
-    L_k = \\begin{bmatrix} I_3 \\\\ [p_k]_\\times \\end{bmatrix}, \\qquad
-    h_S(a) = \\sum_k \\max_{v \\in V_k} (L_k^T a) \\cdot v                     \\qquad (1)
+    S = \sum_k L_k Q_k \subset \mathbb{R}^6, \qquad
+    L_k = \begin{bmatrix} I_3 \\ [p_k]_\times \end{bmatrix}, \qquad
+    h_S(a) = \sum_k \max_{v \in V_k} (L_k^T a) \cdot v                     \qquad (1)
 
 With ``Q_k`` the friction-bounded polytopes it is the FWS (feasible wrench set); with the
 force polytopes of legs with more than 3 joints it is their AWP. Algorithm (all in the
@@ -37,8 +38,8 @@ import numpy as np
 from awp_ros.errors import InputError
 from awp_ros.geometry.face_lattice import polytope_faces
 from awp_ros.geometry.linalg import orthonormal_span
-from awp_ros.geometry.polytope import Polytope
 from awp_ros.geometry.minkowski_facets import facet_normals, FLOAT32_SLACK
+from awp_ros.geometry.polytope import Polytope
 from awp_ros.wrench.wrench_polytope import lift_matrices
 
 # lift_matrices and lp_directional_margins are re-exported from their modules.
@@ -46,9 +47,10 @@ __all__ = ['feasible_wrench_set', 'minkowski_sum_of_lifts']
 
 def feasible_wrench_set(positions: np.ndarray, friction_polytopes: Sequence[Polytope],
                         **tolerances: float) -> Polytope:
-    """Return the FWS, the Minkowski sum of the lifted friction-bounded leg polytopes.
+    r"""
+    Return the FWS, the Minkowski sum of the lifted friction-bounded leg polytopes.
 
-    .. math:: \\mathrm{FWS} = \\sum_k L_k\\, (P_k \\cap C_k \\cap \\{n_k \\cdot f \\ge 0\\})
+    .. math:: \mathrm{FWS} = \sum_k L_k\, (P_k \cap C_k \cap \{n_k \cdot f \ge 0\})
 
     :param positions: (K, 3) stance feet relative to the CoM [m], world-aligned axes.
     :param friction_polytopes: K 3D polytopes of contact forces [N] (world-aligned axes) with
@@ -79,10 +81,11 @@ def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
                            rank_tol: float = 1e-7, plane_tol: float = 1e-9,
                            cone_tol: float = 1e-5, normal_tol: float = 1e-8,
                            dedupe_decimals: int = 10) -> Polytope:
-    """Return the exact H-rep of ``sum_k L_k conv(V_k)`` in R^6 (module docstring, (1)-(4)).
+    r"""
+    Return the exact H-rep of ``sum_k L_k conv(V_k)`` in R^6 (module docstring, (1)-(4)).
 
-    .. math:: S = \\sum_k L_k\\, \\mathrm{conv}(V_k), \\quad
-              S = \\{x : A x \\le b,\\; x = o + U y\\}
+    .. math:: S = \sum_k L_k\, \mathrm{conv}(V_k), \quad
+              S = \{x : A x \le b,\; x = o + U y\}
 
     :param positions: (K, 3) points of application relative to the CoM [m] (world axes).
     :param vertex_sets: K arrays (n_k, 3) of points [N] (duplicates and non-extreme points
@@ -168,7 +171,8 @@ def _support(A_r: np.ndarray, Z: list[np.ndarray]) -> np.ndarray:
 
 
 def _unique_rows(X: np.ndarray, decimals: int) -> np.ndarray:
-    """Return the sorted indices of the first of each group of rows equal after rounding.
+    """
+    Return the sorted indices of the first of each group of rows equal after rounding.
 
     Rows are hashed to one integer (a fast 1D unique); a hash collision between different
     rounded rows is detected and then the exact row-wise unique is used.

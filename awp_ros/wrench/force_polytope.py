@@ -1,19 +1,20 @@
-"""Per-leg force polytopes: the contact forces a leg's torque box can produce, in R^3.
+r"""
+Per-leg force polytopes: the contact forces a leg's torque box can produce, in R^3.
 
 For leg k with translational foot Jacobian ``J`` (3 x n, LOCAL_WORLD_ALIGNED, world axes)
 and ``bias`` the leg's rows of ``rnea(q, v, a)`` (seed eq. 1):
 
 .. math::
 
-    (1)\\quad \\mathcal F = \\{f : \\tau_{min} \\le \\mathrm{bias} - J^T f \\le \\tau_{max}\\}
-    \\qquad f\\ \\text{[N], force of the ground on the foot, world axes}
+    (1)\quad \mathcal F = \{f : \tau_{min} \le \mathrm{bias} - J^T f \le \tau_{max}\}
+    \qquad f\ \text{[N], force of the ground on the foot, world axes}
 
-    (2)\\quad n = 3,\\ J\\ \\text{invertible:}\\quad
-        \\mathcal F = \\{c - G s : s \\in [-1, 1]^3\\},\\
-        c = J^{-T}(\\mathrm{bias} - \\tau_{mid}),\\ G = J^{-T} \\mathrm{diag}(h)
+    (2)\quad n = 3,\ J\ \text{invertible:}\quad
+        \mathcal F = \{c - G s : s \in [-1, 1]^3\},\
+        c = J^{-T}(\mathrm{bias} - \tau_{mid}),\ G = J^{-T} \mathrm{diag}(h)
 
-    (3)\\quad \\text{facets:}\\quad \\pm \\hat J_i \\cdot f \\le \\dots,\\
-        \\text{one pair per joint } i, \\hat J_i = J_{:,i} / |J_{:,i}|
+    (3)\quad \text{facets:}\quad \pm \hat J_i \cdot f \le \dots,\
+        \text{one pair per joint } i, \hat J_i = J_{:,i} / |J_{:,i}|
 
 with ``tau_mid = (tau_max + tau_min) / 2`` and ``h = (tau_max - tau_min) / 2``. Vertex ``i``
 of a parallelepiped is ``c - G s_i`` with ``s_i`` row ``i`` of :data:`CUBE_SIGNS`; it is
@@ -50,7 +51,8 @@ CUBE_SIGNS = np.array(list(itertools.product((-1.0, 1.0), repeat=3)))
 def parallelepipeds(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray,
                     tau_max: np.ndarray, *, singular_rtol: float = 1e-9
                     ) -> dict[str, np.ndarray]:
-    """Return the force parallelepipeds of K 3-joint legs at once (equations 2-3).
+    """
+    Return the force parallelepipeds of K 3-joint legs at once (equations 2-3).
 
     :param J: (K, 3, 3) foot Jacobians [m/rad], world axes.
     :param bias: (K, 3) bias torques [N.m].
@@ -88,7 +90,8 @@ def parallelepipeds(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray,
 def force_polytope(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray,
                    tau_max: np.ndarray, *, singular_rtol: float = 1e-9,
                    near_singular_rtol: float = 1e-2, tol: float = 1e-9) -> Polytope:
-    """Return the force polytope (1) of one leg with any number of joints.
+    """
+    Return the force polytope (1) of one leg with any number of joints.
 
     :param J: (3, n) foot Jacobian w.r.t. the leg's joints [m/rad], world axes.
     :param bias: (n,) bias torques [N.m] (seed eq. 1 without the contact term).
@@ -142,9 +145,10 @@ def triples(m: int) -> np.ndarray:
 
 def polytope_from_halfspaces(A: np.ndarray, b: np.ndarray, *, tol: float = 1e-9,
                              det_tol: float = 1e-12) -> Polytope:
-    """Return the bounded polytope ``{x : A x <= b}`` in R^3 with its vertices.
+    r"""
+    Return the bounded polytope ``{x : A x <= b}`` in R^3 with its vertices.
 
-    .. math:: P = \\{x \\in \\mathbb R^3 : a_i \\cdot x \\le b_i\\}
+    .. math:: P = \{x \in \mathbb R^3 : a_i \cdot x \le b_i\}
 
     Every triple of planes with ``|det| > det_tol`` is solved at once (batched), the
     solutions satisfying all rows within ``tol * max(1, |b|_inf)`` are the vertices
@@ -193,7 +197,8 @@ def polytope_from_halfspaces(A: np.ndarray, b: np.ndarray, *, tol: float = 1e-9,
 
 def polytope_from_points(V: np.ndarray, *, tol: float = 1e-9,
                          extreme: bool = False) -> Polytope:
-    """Return the convex hull of points in R^3, of any affine dimension 0-3.
+    """
+    Return the convex hull of points in R^3, of any affine dimension 0-3.
 
     :param V: (k, 3) points [N], k >= 1.
     :param tol: relative tolerance (affine rank, duplicate points).

@@ -1,19 +1,20 @@
-"""Friction-bounded force polytopes: what a stance leg can push without slipping.
+r"""
+Friction-bounded force polytopes: what a stance leg can push without slipping.
 
-For a leg with force polytope :math:`\\mathcal F` (see :mod:`awp_ros.wrench.force_polytope`),
+For a leg with force polytope :math:`\mathcal F` (see :mod:`awp_ros.wrench.force_polytope`),
 contact normal ``n`` (unit, world axes) and friction coefficient ``mu``:
 
 .. math::
 
-    (1)\\quad \\mathcal F_\\mu = \\mathcal F \\cap \\mathcal C_N(n, \\mu) \\cap
-        \\{f : n \\cdot f \\ge 0\\}
+    (1)\quad \mathcal F_\mu = \mathcal F \cap \mathcal C_N(n, \mu) \cap
+        \{f : n \cdot f \ge 0\}
 
-    (2)\\quad \\mathcal C_N = \\{f : (\\cos\\theta_i t_1 + \\sin\\theta_i t_2) \\cdot f
-        \\le \\mu \\cos(\\pi / N)\\, n \\cdot f,\\ \\theta_i = 2 \\pi i / N\\}
+    (2)\quad \mathcal C_N = \{f : (\cos\theta_i t_1 + \sin\theta_i t_2) \cdot f
+        \le \mu \cos(\pi / N)\, n \cdot f,\ \theta_i = 2 \pi i / N\}
 
 the N-sided pyramid inscribed in the friction cone (the seed's Fig. 1 "bounded friction
-polytopes"); with N = 4 it is :math:`|f \\cdot t_1|, |f \\cdot t_2| \\le \\mu / \\sqrt 2\\,
-f \\cdot n`. The pyramid's facet normals come from
+polytopes"); with N = 4 it is :math:`|f \cdot t_1|, |f \cdot t_2| \le \mu / \sqrt 2\,
+f \cdot n`. The pyramid's facet normals come from
 :func:`awp_ros.wrench.contact_wrench_cone.friction_pyramid`, the same function the contact wrench
 cone uses, so FWS and CWC share one pyramid. The set is computed exactly by enumerating the
 vertices of the 3D H-representation (1) (all triples of planes, batched); it may be flat
@@ -28,17 +29,18 @@ from functools import lru_cache
 
 import numpy as np
 
-from awp_ros.wrench.contact_wrench_cone import friction_pyramid, friction_pyramids
-from awp_ros.wrench.force_polytope import polytope_from_halfspaces, triples
 from awp_ros.geometry.linalg import cross3
 from awp_ros.geometry.polytope import Polytope
+from awp_ros.wrench.contact_wrench_cone import friction_pyramid, friction_pyramids
+from awp_ros.wrench.force_polytope import polytope_from_halfspaces, triples
 
 __all__ = ['FrictionPolytopes', 'friction_halfspaces', 'friction_polytope', 'friction_polytopes',
            'friction_rows', 'vertex_inside']
 
 
 def friction_halfspaces(normal: np.ndarray, mu: float, sides: int) -> np.ndarray:
-    """Return the rows ``[a, 0]`` of the pyramid (2) and of ``-n . f <= 0``.
+    """
+    Return the rows ``[a, 0]`` of the pyramid (2) and of ``-n . f <= 0``.
 
     :param normal: (3,) unit contact normal, world axes (pointing into the robot).
     :param mu: friction coefficient [-], > 0.
@@ -55,7 +57,8 @@ def friction_halfspaces(normal: np.ndarray, mu: float, sides: int) -> np.ndarray
 
 
 def friction_rows(normals: np.ndarray, mus: np.ndarray, sides: int) -> np.ndarray:
-    """Return :func:`friction_halfspaces` of K contacts at once, shape (K, N + 1, 3).
+    """
+    Return :func:`friction_halfspaces` of K contacts at once, shape (K, N + 1, 3).
 
     :param normals: (K, 3) unit contact normals, world axes.
     :param mus: (K,) friction coefficients [-].
@@ -69,7 +72,8 @@ def friction_rows(normals: np.ndarray, mus: np.ndarray, sides: int) -> np.ndarra
 
 def friction_polytope(force: Polytope, normal: np.ndarray, mu: float, sides: int = 4, *,
                       tol: float = 1e-9) -> Polytope:
-    """Return the friction-bounded force polytope (1) of one leg.
+    """
+    Return the friction-bounded force polytope (1) of one leg.
 
     :param force: the leg's force polytope in R^3 [N] (full or flat, e.g. a singular leg).
     :param normal: (3,) unit contact normal, world axes.
@@ -86,7 +90,8 @@ def friction_polytope(force: Polytope, normal: np.ndarray, mu: float, sides: int
 
 def friction_polytopes(forces: Sequence[Polytope], rows: np.ndarray, *, tol: float = 1e-9,
                        det_tol: float = 1e-12) -> list[Polytope]:
-    """Return the friction-bounded polytopes (1) of K legs, batched over the legs.
+    """
+    Return the friction-bounded polytopes (1) of K legs, batched over the legs.
 
     Legs whose force polytopes are full-dimensional with the same number of rows (all
     3-joint legs) are solved together: every triple of planes of every leg by Cramer's rule
@@ -121,10 +126,11 @@ def friction_polytopes(forces: Sequence[Polytope], rows: np.ndarray, *, tol: flo
 
 def vertex_inside(forces: Sequence[Polytope], rows: np.ndarray, *,
                   margin: float = 1e-6) -> np.ndarray:
-    """Return, per leg, whether a vertex of its force polytope is strictly in its pyramid.
+    r"""
+    Return, per leg, whether a vertex of its force polytope is strictly in its pyramid.
 
-    .. math:: \\exists v \\in \\mathrm{vert}(\\mathcal F_k) : a \\cdot v < -\\epsilon
-              \\; \\forall a \\in \\mathrm{rows}_k
+    .. math:: \exists v \in \mathrm{vert}(\mathcal F_k) : a \cdot v < -\epsilon
+              \; \forall a \in \mathrm{rows}_k
 
     A cheap proof that the friction-bounded polytope (1) is not empty (the vertex is in
     it), so that the per-cycle emptiness warning does not need (1) itself; False does not
@@ -145,7 +151,8 @@ def vertex_inside(forces: Sequence[Polytope], rows: np.ndarray, *,
 
 
 class FrictionPolytopes:
-    """The friction-bounded polytopes (1) of K legs, computed together on first use.
+    """
+    The friction-bounded polytopes (1) of K legs, computed together on first use.
 
     ``frictions[k]`` is :func:`friction_polytopes` ``(forces, rows)[k]``; the batch runs once,
     when a leg's polytope is first asked for (the FWS, leg messages, markers), so a control
@@ -182,7 +189,8 @@ def _intersect(force: Polytope, rows: np.ndarray, tol: float) -> Polytope:
 
 def _batched(forces: list[Polytope], rows: np.ndarray, tol: float,
              det_tol: float) -> list[Polytope | None]:
-    """Vertex enumeration of K full-dimensional legs with equal row counts at once.
+    """
+    Vertex enumeration of K full-dimensional legs with equal row counts at once.
 
     For the triple (i, j, l) of unit rows, Cramer's rule gives
     ``x = (b_i a_j x a_l + b_j a_l x a_i + b_l a_i x a_j) / (a_i . a_j x a_l)``; the cross
@@ -249,7 +257,8 @@ _IMPLIED_TOL = 1e-12  # min (-a_i . n) of the pyramid facets for n . f >= 0 to b
 
 @lru_cache(maxsize=16)
 def _triple_tables(m: int, half: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return the row triples ``(3, T)``, the flat indices ``(3, T)`` of the pairs (j, l),
+    """
+    Return the row triples ``(3, T)``, the flat indices ``(3, T)`` of the pairs (j, l),
     (l, i), (i, j) into an (m, m) table, and the bit weights 2^p of the rows (as floats).
 
     With ``half > 0`` the triples holding rows p and p + half (p < half) are left out.

@@ -1,13 +1,14 @@
-"""Exact per-cycle queries on the feasible wrench set without its H-representation.
+r"""
+Exact per-cycle queries on the feasible wrench set without its H-representation.
 
 For stance feet at ``p_k`` [m] relative to the CoM (world-aligned axes) and per-leg
 friction-bounded force polytopes given by their vertices ``V_k`` [N], the FWS is
 
 .. math::
 
-    S = \\sum_k L_k\\, \\mathrm{conv}(V_k), \\qquad
-    w \\in S \\iff \\exists \\lambda_k \\ge 0,\\ 1^T \\lambda_k = 1:\\
-    \\sum_k L_k V_k^T \\lambda_k = w                                       \\qquad (1)
+    S = \sum_k L_k\, \mathrm{conv}(V_k), \qquad
+    w \in S \iff \exists \lambda_k \ge 0,\ 1^T \lambda_k = 1:\
+    \sum_k L_k V_k^T \lambda_k = w                                       \qquad (1)
 
 so membership and the directional margins ``max {t : w +- t e_i in S}`` are linear programs
 in the barycentric weights (1), solved exactly (simplex) with warm starts. This answers the
@@ -31,10 +32,11 @@ __all__ = ['lp_directional_margins']
 def lp_directional_margins(positions: np.ndarray, vertex_sets: Sequence[np.ndarray],
                            w: np.ndarray, *,
                            feasibility_tol: float = 1e-6) -> tuple[bool, np.ndarray, np.ndarray]:
-    """Return membership and directional margins of ``w`` in S exactly, without the H-rep.
+    r"""
+    Return membership and directional margins of ``w`` in S exactly, without the H-rep.
 
-    .. math:: t^\\pm_i = \\max\\{t : w \\pm t\\, e_i \\in S\\}, \\qquad
-              S = \\sum_k L_k\\, \\mathrm{conv}(V_k)
+    .. math:: t^\pm_i = \max\{t : w \pm t\, e_i \in S\}, \qquad
+              S = \sum_k L_k\, \mathrm{conv}(V_k)
 
     One LP in the barycentric weights ``lam_k >= 0`` (``sum_k L_k V_k^T lam_k - t_i e_i = w``,
     ``1^T lam_k = 1``) solved 13 times with warm starts (primal simplex, HiGHS): ``t = 0``

@@ -1,4 +1,5 @@
-"""The actuation wrench polytope (AWP) and the feasible wrench polytope (FWP) in R^6.
+"""
+The actuation wrench polytope (AWP) and the feasible wrench polytope (FWP) in R^6.
 
 Frames: world-aligned axes (REP 103), origin at the robot's CoM. Foot positions p_k [m]
 relative to the CoM; contact forces f_k [N] exerted by the ground on the robot; wrenches
@@ -30,10 +31,11 @@ __all__ = ['actuation_wrench_polytope', 'feasible_wrench_polytope', 'lift', 'lif
 
 
 def lift(p: np.ndarray) -> np.ndarray:
-    """Return the lift matrix of a foot position, eq. (1).
+    r"""
+    Return the lift matrix of a foot position, eq. (1).
 
-    .. math:: L = \\begin{bmatrix} I_3 \\\\ [p]_\\times \\end{bmatrix}, \\quad
-              L f = [f; p \\times f]
+    .. math:: L = \begin{bmatrix} I_3 \\ [p]_\times \end{bmatrix}, \quad
+              L f = [f; p \times f]
 
     :param p: foot position ``(3,)`` [m] relative to the CoM, world axes.
     :return: array ``(6, 3)``.
@@ -42,7 +44,8 @@ def lift(p: np.ndarray) -> np.ndarray:
 
 
 def lift_matrices(positions: np.ndarray) -> np.ndarray:
-    """Return the lifts ``L_k = [I_3; [p_k]_x]`` of shape (K, 6, 3), eq. (1), batched.
+    """
+    Return the lifts ``L_k = [I_3; [p_k]_x]`` of shape (K, 6, 3), eq. (1), batched.
 
     :param positions: (K, 3) feet relative to the CoM [m], world-aligned axes.
     """
@@ -57,7 +60,8 @@ def lift_matrices(positions: np.ndarray) -> np.ndarray:
 
 
 def lift_points(positions: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """Return ``L_k v`` for per-leg 3-vectors, batched: ``(K, ..., 3) -> (K, ..., 6)``, eq. (1).
+    """
+    Return ``L_k v`` for per-leg 3-vectors, batched: ``(K, ..., 3) -> (K, ..., 6)``, eq. (1).
 
     :param positions: ``(K, 3)`` [m]; :param vectors: ``(K, ..., 3)`` (forces [N]).
     """
@@ -70,10 +74,11 @@ def lift_points(positions: np.ndarray, vectors: np.ndarray) -> np.ndarray:
 def actuation_wrench_polytope(positions: np.ndarray, centers: np.ndarray,
                               generators: np.ndarray, *, with_vertices: bool = False,
                               **zonotope_tols: float) -> Polytope:
-    """Return the AWP of 3-joint legs as an exact zonotope H-rep, eq. (2).
+    r"""
+    Return the AWP of 3-joint legs as an exact zonotope H-rep, eq. (2).
 
-    .. math:: \\mathrm{AWP} = \\bigoplus_k L_k (c_k + H_k [-1, 1]^3)
-              = \\textstyle\\sum_k L_k c_k + [L_1 H_1, \\dots, L_K H_K] [-1, 1]^{3K}
+    .. math:: \mathrm{AWP} = \bigoplus_k L_k (c_k + H_k [-1, 1]^3)
+              = \textstyle\sum_k L_k c_k + [L_1 H_1, \dots, L_K H_K] [-1, 1]^{3K}
 
     :param positions: stance foot positions ``(K, 3)`` [m] relative to the CoM, world axes.
     :param centers: force-polytope centres ``(K, 3)`` [N], world axes.
@@ -98,10 +103,11 @@ def actuation_wrench_polytope(positions: np.ndarray, centers: np.ndarray,
 
 def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 1e-9,
                              interior_tol: float = 1e-9) -> Polytope:
-    """Return the FWP = AWP cap CWC as a stacked H-rep in the common affine hull, eq. (3).
+    r"""
+    Return the FWP = AWP cap CWC as a stacked H-rep in the common affine hull, eq. (3).
 
-    .. math:: \\mathrm{FWP} = \\{w \\in \\mathrm{aff}: A_{awp} w \\le b_{awp},\\;
-              A_{cwc} w \\le 0\\}
+    .. math:: \mathrm{FWP} = \{w \in \mathrm{aff}: A_{awp} w \le b_{awp},\;
+              A_{cwc} w \le 0\}
 
     Rows of both sets are projected on the intersection of the two affine hulls (they are
     equal, and nothing is projected, when leg polytopes and pyramids are full-dimensional)
@@ -185,7 +191,8 @@ def _point_intersection(awp: Polytope, cwc: Polytope, tol: float) -> Polytope:
 
 def _hull_intersection(awp: Polytope, cwc: Polytope,
                        tol: float) -> tuple[np.ndarray, np.ndarray | None, bool]:
-    """Return ``(origin, basis, same)`` of aff(AWP) cap aff(CWC).
+    """
+    Return ``(origin, basis, same)`` of aff(AWP) cap aff(CWC).
 
     ``basis`` is None when the hulls miss each other; ``same`` when they coincide.
     """
@@ -232,7 +239,8 @@ def _strictly_inside(A: np.ndarray, b: np.ndarray, x: np.ndarray, tol: float) ->
 
 
 def _chebyshev_radius(A_r: np.ndarray, b_r: np.ndarray) -> float | None:
-    """Return the largest inscribed-ball radius of ``{y : A_r y <= b_r}`` (may be < 0).
+    """
+    Return the largest inscribed-ball radius of ``{y : A_r y <= b_r}`` (may be < 0).
 
     Rows are normalised in hull coordinates; the radius is capped at 1 (only its sign and
     smallness matter). None when the LP fails.

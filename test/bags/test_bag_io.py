@@ -9,13 +9,13 @@ import sys
 import numpy as np
 import pytest
 
-from awp_ros.bags.types import typestore
-from awp_ros.gait.bag import DEFAULT_START_NS, gait_messages
+from awp_ros.bags.message_types import typestore
+from awp_ros.bags.message_types import CONTACT_STATE, IMU, JOINT_STATE
 from awp_ros.bags.reader import bag_info, BagMessage, read_bag
-from awp_ros.bags.types import CONTACT_STATE, IMU, JOINT_STATE
 from awp_ros.bags.writer import BagWriter
-from awp_ros.gait.bag import default_bag_path, write_gait_bag
 from awp_ros.errors import BagError
+from awp_ros.gait.bag import DEFAULT_START_NS, gait_messages
+from awp_ros.gait.bag import default_bag_path, write_gait_bag
 from awp_ros.gait.generator import GaitParams, generate_gait
 from awp_ros.robot.config import load_config
 

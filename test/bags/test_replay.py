@@ -13,15 +13,15 @@ from types import SimpleNamespace
 
 import pytest
 
-from awp_ros.bags.types import typestore
-from awp_ros.bags.reader import BagMessage, TopicInfo
-from awp_ros.bags.writer import BagWriter
-from awp_ros.gait.bag import write_gait_bag
-from awp_ros.gait.generator import GaitParams, generate_gait
+from awp_ros.bags.message_types import typestore
 from awp_ros.bags.progress import Progress
+from awp_ros.bags.reader import BagMessage, TopicInfo
 from awp_ros.bags.replay import load_parameters, make_pipeline, replay_bag
 from awp_ros.bags.summary import summarize_reports
+from awp_ros.bags.writer import BagWriter
 from awp_ros.cli.replay import main as replay_main, parse_override
+from awp_ros.gait.bag import write_gait_bag
+from awp_ros.gait.generator import GaitParams, generate_gait
 from awp_ros.robot.config import load_config
 
 BIN = Path(sys.executable).parent

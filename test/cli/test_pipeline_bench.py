@@ -8,10 +8,10 @@ import sys
 
 import pytest
 
-from awp_ros.evaluation.evaluator import STAGES
-from awp_ros.gait.generator import GaitParams, generate_gait
-from awp_ros.gait.bag import write_gait_bag
 from awp_ros.cli.pipeline_bench import time_pipeline
+from awp_ros.evaluation.evaluator import STAGES
+from awp_ros.gait.bag import write_gait_bag
+from awp_ros.gait.generator import GaitParams, generate_gait
 from awp_ros.robot.config import load_config
 
 

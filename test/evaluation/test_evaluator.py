@@ -13,10 +13,10 @@ from scipy.optimize import linprog
 from awp_ros.errors import InputError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.evaluation.result import AXES
-from awp_ros.wrench.friction_polytope import friction_halfspaces, friction_polytope
 from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.robot.model import resolve_urdf
 from awp_ros.robot.state import RobotState
+from awp_ros.wrench.friction_polytope import friction_halfspaces, friction_polytope
 from cases import G, M_BASE, M_FOOT, toy_urdf
 
 ROBOTS = ('hyq', 'anymal_c', 'go2', 'solo12')
@@ -96,7 +96,8 @@ def lift(p):
 
 
 def wrench_lp(ev, state, kind, *, w=None, direction=None, line=None):
-    """LP on the definitions over the contact forces f_1..f_K (3K variables).
+    """
+    LP on the definitions over the contact forces f_1..f_K (3K variables).
 
     kind 'awp': torque boxes; 'fws': torque boxes and pyramids on the same forces; 'fwp':
     torque boxes on f and pyramids on a second set f' with equal total wrench.

@@ -1,4 +1,5 @@
-"""Property tests of the feasibility core (hypothesis): what must hold for every posture.
+"""
+Property tests of the feasibility core (hypothesis): what must hold for every posture.
 
 - random postures and stance sets raise nothing but the documented InputError;
 - margins are continuous under tiny posture perturbations;

@@ -62,7 +62,9 @@ def test_stance_feet_are_on_the_ground_and_swing_feet_above_it(gait):
 
 
 def test_stance_feet_do_not_slip(hyq, gait):
-    """World velocity of each stance foot from the full model (joint velocities + base twist
+    """
+    World velocity of each stance foot from the full model (joint velocities + base twist
+
     from the IMU rate and the differentiated base position) is zero."""
     _, model = hyq
     dt = 1.0 / gait.rate_hz

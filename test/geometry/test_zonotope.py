@@ -9,7 +9,8 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from awp_ros.errors import InputError
-from awp_ros.geometry.linalg import distinct_columns, hyperplane_normals, orthonormal_span, subset_normals
+from awp_ros.geometry.linalg import (distinct_columns, hyperplane_normals, orthonormal_span,
+                                     subset_normals)
 from awp_ros.geometry.zonotope import zonotope, zonotope_support
 
 

@@ -1,4 +1,5 @@
-"""A stand-alone ROS 2 peer for the two-process message tests: `pub` or `sub`.
+"""
+A stand-alone ROS 2 peer for the two-process message tests: `pub` or `sub`.
 
 pub: publishes one ContactState and one FeasibilityReport every 50 ms until killed.
 sub: waits for one of each, prints them as a JSON line, exits 0 (exit 1 after --timeout s).

@@ -1,4 +1,5 @@
-"""The documented system-ROS build: colcon builds awp_ros_msgs and awp_ros from a workspace.
+"""
+The documented system-ROS build: colcon builds awp_ros_msgs and awp_ros from a workspace.
 
 colcon stops descending at a package, and the repository root is the awp_ros package, so the
 README names both package paths. This test runs exactly that on a copy of the repository.

@@ -1,4 +1,5 @@
-"""Faults around a running awp_node: inputs that come late, stop, restart; two robots.
+"""
+Faults around a running awp_node: inputs that come late, stop, restart; two robots.
 
 Every node runs as its own process (the ``awp_node`` console script); joint states and
 contacts come from driver processes (``python -m awp_ros.soak --drive``: gait postures at a

@@ -1,4 +1,5 @@
-"""awp_node as its own process (the installed console script), driven over real DDS.
+"""
+awp_node as its own process (the installed console script), driven over real DDS.
 
 The test process is the other DDS participant: an rclpy context on the test's own domain
 (``ros_env``) with publishers of joint states and contacts and subscriptions to the node's
@@ -30,9 +31,9 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from visualization_msgs.msg import Marker, MarkerArray
 
-from awp_ros.ros.conversions import polytope_from_msg, stamp_to_ns
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.robot.state import RobotState
+from awp_ros.ros.conversions import polytope_from_msg, stamp_to_ns
 
 AWP_NODE = Path(sys.executable).parent / 'awp_node'
 AWP_EVAL = Path(sys.executable).parent / 'awp_eval'

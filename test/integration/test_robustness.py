@@ -1,4 +1,5 @@
-"""The bad-input catalogue, over real DDS against one running awp_node (issue 6).
+"""
+The bad-input catalogue, over real DDS against one running awp_node (issue 6).
 
 One node process (the ``awp_node`` console script) serves the whole module; the test
 process is the other DDS participant. Each case sends one input (a contact state, then a
@@ -37,11 +38,11 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
-from awp_ros.ros.pipeline import MAX_REASON_CHARS
-from awp_ros.robot.model import resolve_urdf
 from awp_ros.node.launcher import ros_env, start_node, stop_node
-from awp_ros.soak.probe import Probe, wait_until
+from awp_ros.robot.model import resolve_urdf
 from awp_ros.robot.state import RobotState
+from awp_ros.ros.pipeline import MAX_REASON_CHARS
+from awp_ros.soak.probe import Probe, wait_until
 
 S = FeasibilityReport
 OK, WARNING, INVALID, STALE, ERROR = (S.STATUS_OK, S.STATUS_WARNING, S.STATUS_INVALID_INPUT,

@@ -1,4 +1,5 @@
-"""The soak script, short: awp_node driven from another process; nothing may be lost.
+"""
+The soak script, short: awp_node driven from another process; nothing may be lost.
 
 The full runs (60 s at 1 kHz and at a sustained rate) are in the README, with the command;
 here a few seconds at a rate this machine sustains (no timing assertions: the machine is

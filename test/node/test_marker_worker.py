@@ -8,8 +8,8 @@ import threading
 import time
 
 import pytest
-from std_msgs.msg import Header
 from rclpy.serialization import deserialize_message, serialize_message
+from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator

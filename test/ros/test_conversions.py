@@ -15,13 +15,13 @@ from scipy.spatial import ConvexHull
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 
-from awp_ros.ros.conversions import (error_report, leg_polytopes_msg, polytope_from_msg,
-                                 polytope_to_msg, report_msg, robot_state_from_msgs,
-                                 stamp_to_ns, wrench_polytope_msg)
 from awp_ros.errors import InputError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.evaluation.result import AXES
 from awp_ros.geometry.polytope import Polytope
+from awp_ros.ros.conversions import (error_report, leg_polytopes_msg, polytope_from_msg,
+                                     polytope_to_msg, report_msg, robot_state_from_msgs,
+                                     stamp_to_ns, wrench_polytope_msg)
 
 FEET = ('lf_foot', 'rf_foot', 'lh_foot', 'rh_foot')
 

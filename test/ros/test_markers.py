@@ -13,9 +13,9 @@ from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
-from awp_ros.ros.markers import (build_markers, error_markers, force_slice, hull_triangles,
-                             MarkerStyle, quaternion_matrix)
 from awp_ros.geometry.polytope import Polytope
+from awp_ros.ros.markers import (build_markers, error_markers, force_slice, hull_triangles,
+                                 MarkerStyle, quaternion_matrix)
 
 VALID_TYPES = set(range(12))
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 from sensor_msgs.msg import Imu
 
-from awp_ros.ros.conversions import stamp_to_ns
 from awp_ros.errors import ConfigError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+from awp_ros.ros.conversions import stamp_to_ns
 from awp_ros.ros.cycle import OUTPUTS
 from awp_ros.ros.pipeline import Pipeline
 from awp_ros.ros.pipeline_params import PipelineParams

@@ -7,8 +7,8 @@ import pytest
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 
-from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone, friction_pyramid, lift_rays
 from awp_ros.errors import InputError
+from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone, friction_pyramid, lift_rays
 
 FEET = np.array([[0.37, 0.33, -0.55], [0.37, -0.33, -0.55],
                  [-0.37, 0.33, -0.55], [-0.37, -0.33, -0.55]])

@@ -1,4 +1,5 @@
-"""Tests of awp_ros.wrench.feasible_wrench_set against qhull, LPs on the definition, and hand cases.
+"""
+Tests of awp_ros.wrench.feasible_wrench_set against qhull, LPs on the definition, and hand cases.
 
 The sums are checked by methods that do not share its algorithm: brute-force vertex sums
 (every row supporting: max over the sums equals b, so S is inside the H-rep's polytope P),
@@ -17,10 +18,10 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, HalfspaceIntersection
 
 from awp_ros.errors import InputError
-from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
-from awp_ros.wrench.wrench_polytope import lift_matrices
 from awp_ros.geometry.margin import directional_margins, polytope_margin
 from awp_ros.geometry.polytope import Polytope
+from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
+from awp_ros.wrench.wrench_polytope import lift_matrices
 from cases import hyq_feet, hyq_like_leg, vertex_sums
 
 # -- independent references ------------------------------------------------------------------
@@ -58,7 +59,8 @@ def hull_coords(S: Polytope, X: np.ndarray) -> np.ndarray:
 
 
 def hrep_vertices(S: Polytope) -> np.ndarray:
-    """Vertices of the H-rep's polytope (ambient coordinates), by qhull's halfspace intersection.
+    """
+    Vertices of the H-rep's polytope (ambient coordinates), by qhull's halfspace intersection.
 
     qhull repeats a vertex once per simplicial piece of a non-simple vertex; the repeats are
     kept (each is checked). 'Q12' lets qhull merge the nearly coplanar facets these sums have
@@ -77,7 +79,8 @@ def hrep_vertices(S: Polytope) -> np.ndarray:
 
 
 def check_hrep_vertices_are_sums(S: Polytope, positions, vertex_sets, rtol=1e-7):
-    """Every vertex of the H-rep's polytope is a vertex sum, so that polytope is inside S.
+    """
+    Every vertex of the H-rep's polytope is a vertex sum, so that polytope is inside S.
 
     With :func:`check_rows_support` (S inside it) the two are equal: no facet is missing.
     With 'Q12' qhull may also emit points off the polytope (violating its rows; artefacts of
@@ -253,7 +256,9 @@ def test_four_legs_directional_margins_match_linprog(four_legs):
 
 
 def test_tiny_leg_facet_regression():
-    """Seed 65: a leg with a 0.01 N facet (lost once by the face search, which then gave rows
+    """
+    Seed 65: a leg with a 0.01 N facet (lost once by the face search, which then gave rows
+
     cutting S by 600 N): every row supports the sums, supports near the rows agree."""
     rng = np.random.default_rng(65)
     vertex_sets = [hyq_like_leg(rng) for _ in range(4)]
@@ -340,7 +345,8 @@ def test_segment_point_and_flat_legs_in_hull_coordinates():
 
 @pytest.mark.parametrize('seed', [0, 44, 139])
 def test_nearly_flat_thin_and_clustered_legs(seed):
-    """Legs flat to 1e-12..1e-4, nearly segments, or with 1e-3 N clusters: the supports of
+    """
+    Legs flat to 1e-12..1e-4, nearly segments, or with 1e-3 N clusters: the supports of
     the H-rep's polytope along random and near-facet directions stay within 1e-6 (relative)
     of the true ones (seeds that once overshot by 1e-2 or gave an unbounded H-rep)."""
     rng = np.random.default_rng(seed)

@@ -8,7 +8,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 
 from awp_ros.wrench.force_polytope import (CUBE_SIGNS, force_polytope, parallelepipeds,
-                                    polytope_from_halfspaces, polytope_from_points)
+                                           polytope_from_halfspaces, polytope_from_points)
 
 RNG_SEED = 7
 

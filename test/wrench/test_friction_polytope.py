@@ -8,8 +8,9 @@ from scipy.optimize import linprog
 from scipy.spatial import HalfspaceIntersection
 
 from awp_ros.wrench.force_polytope import force_polytope
-from awp_ros.wrench.friction_polytope import (friction_halfspaces, friction_polytope, friction_polytopes,
-                                       friction_rows, FrictionPolytopes, vertex_inside)
+from awp_ros.wrench.friction_polytope import (friction_halfspaces, friction_polytope,
+                                              friction_polytopes, friction_rows, FrictionPolytopes,
+                                              vertex_inside)
 
 RNG_SEED = 11
 

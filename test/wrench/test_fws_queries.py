@@ -1,4 +1,5 @@
-"""Tests of awp_ros.wrench.fws_queries: LP membership and directional margins of the FWS.
+"""
+Tests of awp_ros.wrench.fws_queries: LP membership and directional margins of the FWS.
 
 Checked against an independent method, the exact H-rep of the same Minkowski sum
 (:func:`awp_ros.wrench.feasible_wrench_set.minkowski_sum_of_lifts`) with the ratio test of
@@ -10,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from awp_ros.wrench import fws_queries
-from awp_ros.wrench.fws_queries import lp_directional_margins as reexported
-from awp_ros.wrench.feasible_wrench_set import minkowski_sum_of_lifts
-from awp_ros.wrench.fws_queries import lp_directional_margins
 from awp_ros.geometry.margin import directional_margins, polytope_margin
+from awp_ros.wrench import fws_queries
+from awp_ros.wrench.feasible_wrench_set import minkowski_sum_of_lifts
+from awp_ros.wrench.fws_queries import lp_directional_margins as reexported
+from awp_ros.wrench.fws_queries import lp_directional_margins
 from cases import hyq_feet, hyq_like_leg, vertex_sums
 
 
@@ -24,7 +25,9 @@ def test_reexported_from_feasible_wrench_set():
 
 @pytest.mark.parametrize('K', [1, 2, 3, 4])
 def test_lp_directional_margins_match_the_hrep(K):
-    """Warm-started LPs and the H-rep ratio test (two independent methods) agree, flat sets
+    """
+    Warm-started LPs and the H-rep ratio test (two independent methods) agree, flat sets
+
     included (a transversal axis meets the hull in one point or misses it: NaN)."""
     rng = np.random.default_rng(20 + K)
     vertex_sets = [hyq_like_leg(rng) for _ in range(K)]

@@ -9,11 +9,11 @@ import pytest
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 
-from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone, friction_pyramid, lift_rays
 from awp_ros.errors import InputError
 from awp_ros.geometry.margin import directional_margins, polytope_margin
-from awp_ros.wrench.wrench_polytope import (actuation_wrench_polytope, feasible_wrench_polytope, lift,
-                                     lift_points)
+from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone, friction_pyramid, lift_rays
+from awp_ros.wrench.wrench_polytope import (actuation_wrench_polytope, feasible_wrench_polytope,
+                                            lift, lift_points)
 
 FEET = np.array([[0.37, 0.33, -0.55], [0.37, -0.33, -0.55],
                  [-0.37, 0.33, -0.55], [-0.37, -0.33, -0.55]])

@@ -1,4 +1,5 @@
-"""Message types of bags and live playback: the node's inputs and outputs, the typestore.
+"""
+Message types of bags and live playback: the node's inputs and outputs, the typestore.
 
 The ``rosbags`` typestore (ROS 2 Jazzy types plus ``awp_ros_msgs``, registered from its
 ``.msg`` files) provides the message definitions and RIHS01 hashes a bag stores for each
@@ -40,7 +41,8 @@ _MSG_PACKAGE = 'awp_ros_msgs'
 
 
 def msg_dirs() -> list[Path]:
-    """Return the folders searched for the ``awp_ros_msgs`` ``.msg`` files, in order.
+    """
+    Return the folders searched for the ``awp_ros_msgs`` ``.msg`` files, in order.
 
     ``<sys.prefix>/share/awp_ros_msgs/msg``, the same under every ``$AMENT_PREFIX_PATH``
     entry, then the source tree's ``msg_defs/msg``.
@@ -54,7 +56,8 @@ def msg_dirs() -> list[Path]:
 
 @functools.lru_cache(maxsize=1)
 def typestore():
-    """Return the rosbags typestore of ROS 2 Jazzy plus ``awp_ros_msgs`` (cached).
+    """
+    Return the rosbags typestore of ROS 2 Jazzy plus ``awp_ros_msgs`` (cached).
 
     :raises BagError: the ``awp_ros_msgs`` ``.msg`` files are nowhere to be found.
     """
@@ -74,7 +77,8 @@ def typestore():
 
 
 def message_class(msgtype: str):
-    """Return the rclpy message class of ``pkg/msg/Name``.
+    """
+    Return the rclpy message class of ``pkg/msg/Name``.
 
     :raises BagError: the type's Python package is not installed (unknown message type).
     """
