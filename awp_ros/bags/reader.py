@@ -29,9 +29,11 @@ STORAGES = {'.mcap': 'mcap', '.db3': 'sqlite3'}
 @dataclass(frozen=True)
 class BagMessage:
     """
-    One serialised message: ``topic``, ``msgtype`` (``pkg/msg/Name``), log time [ns]
+    One serialised message of a bag.
 
-    since the epoch, and its CDR bytes (with the 4-byte encapsulation header)."""
+    Its ``topic``, ``msgtype`` (``pkg/msg/Name``), log time [ns] since the epoch, and its CDR
+    bytes (with the 4-byte encapsulation header).
+    """
 
     topic: str
     msgtype: str
@@ -42,9 +44,11 @@ class BagMessage:
 @dataclass(frozen=True)
 class TopicInfo:
     """
-    A topic of a bag: its type, message count, definition (``ros2msg`` text, may be
+    A topic of a bag.
 
-    empty) and RIHS01 type hash (may be empty)."""
+    Its type, message count, definition (``ros2msg`` text, may be empty) and RIHS01 type hash
+    (may be empty).
+    """
 
     msgtype: str
     count: int
@@ -55,9 +59,10 @@ class TopicInfo:
 @dataclass(frozen=True)
 class BagInfo:
     """
-    Summary of a bag: storage (``mcap`` / ``sqlite3``), topics, message count, first and
+    Summary of a bag.
 
-    last log times [ns]."""
+    Storage (``mcap`` / ``sqlite3``), topics, message count, first and last log times [ns].
+    """
 
     path: str
     storage: str

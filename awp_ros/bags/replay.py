@@ -6,19 +6,14 @@ optionally ``imu``) in recorded order, feeds them to :class:`awp_ros.ros.pipelin
 the node's callbacks do, and writes every output message (``report``, ``awp``, ``fwp``,
 ``fws``, ``leg_polytopes``, ``markers``) to a new bag under the node's topic names
 (``/<node_name>/<output>``), logged at the log time of the joint state it answers, plus
-the input topics. :func:`load_parameters` and :func:`make_pipeline` build the pipeline from
-the node's parameters file.
-
-Live playback (:func:`play_bag`, :mod:`awp_ros.bags.player`), the progress bar
-(:class:`Progress`, :mod:`awp_ros.bags.progress`) and the summary (:class:`ReplaySummary`,
-:mod:`awp_ros.bags.summary`) live in their own modules and are importable from here too.
+the input topics. The pipeline is built from the node's parameters by
+:meth:`awp_ros.ros.pipeline.Pipeline.from_parameters` (see
+:func:`awp_ros.robot.config.load_parameters`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
-from dataclasses import replace
-from pathlib import Path
 import time
 from typing import TextIO
 
@@ -29,60 +24,7 @@ from awp_ros.bags.summary import ReplaySummary, summarize_reports
 from awp_ros.bags.writer import BagWriter
 from awp_ros.errors import BagError
 
-__all__ = ['replay_bag', 'load_parameters', 'make_pipeline', 'check_input_topics']
-
-
-def load_parameters(params_file=None, *, robot: str = 'hyq',
-                    overrides: Mapping | None = None) -> dict:
-    """
-    Return the node's parameters as a flat mapping: a params file plus overrides.
-
-    :param params_file: a ROS 2 parameters YAML (default ``config/<robot>.yaml`` found by
-        :func:`awp_ros.robot.config.config_dirs`).
-    :param overrides: key -> value applied on top (like ``-p key:=value``).
-    :raises ConfigError: the file is missing or not a parameters mapping.
-    """
-    import yaml
-
-    from awp_ros.errors import ConfigError
-    from awp_ros.robot.config import config_dirs, find_config_file
-
-    if params_file is None:
-        params_file = find_config_file(f'{robot}.yaml')
-        if params_file is None:
-            raise ConfigError(f'no parameters file {robot}.yaml in '
-                              f'{[str(d) for d in config_dirs()]}')
-    path = Path(params_file)
-    try:
-        data = yaml.safe_load(path.read_text(encoding='utf-8'))
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f'cannot read parameters file {str(path)!r}: {exc}') from exc
-    if not isinstance(data, Mapping):
-        raise ConfigError(f'parameters file {str(path)!r} must hold a mapping')
-    sections = [v['ros__parameters'] for v in data.values()
-                if isinstance(v, Mapping) and isinstance(v.get('ros__parameters'), Mapping)]
-    flat: dict = {}
-    for section in sections or [data]:
-        flat.update(section)
-    flat.update(overrides or {})
-    flat['__base_dir__'] = str(path.resolve().parent)
-    return flat
-
-
-def make_pipeline(parameters: Mapping):
-    """Build the node's :class:`~awp_ros.ros.pipeline.Pipeline` from :func:`load_parameters`."""
-    from awp_ros.ros.pipeline import Pipeline
-    from awp_ros.ros.pipeline_params import PipelineParams
-    from awp_ros.robot.config import load_config, RobotConfig
-
-    flat = {k: v for k, v in parameters.items() if k != '__base_dir__'}
-    if flat.get('robot') and not flat.get('robot_name'):
-        config = load_config(flat['robot'])
-    else:
-        config = RobotConfig.from_dict(flat, base_dir=parameters.get('__base_dir__'))
-    if flat.get('robot_description'):
-        config = replace(config, urdf=str(flat['robot_description']))
-    return Pipeline(config, PipelineParams.from_dict(flat))
+__all__ = ['check_input_topics', 'replay_bag']
 
 
 def check_input_topics(info, topics: Mapping[str, str], *, use_imu: bool) -> dict[str, str]:
@@ -123,7 +65,8 @@ def replay_bag(in_bag, out_bag, *, pipeline, topics: Mapping[str, str] | None = 
     ``/<node_name>/<output>``. With ``copy_inputs`` every topic of the input bag is copied
     too (with its stored definition).
 
-    :param pipeline: a :class:`~awp_ros.ros.pipeline.Pipeline` (see :func:`make_pipeline`).
+    :param pipeline: a :class:`~awp_ros.ros.pipeline.Pipeline` (see
+        :meth:`~awp_ros.ros.pipeline.Pipeline.from_parameters`).
     :param topics: role (``joint_states``, ``contacts``, ``imu``) -> input topic name.
     :param outputs: which of :data:`~awp_ros.ros.pipeline.OUTPUTS` to write (default all).
     :param compress: zstd chunk compression of the output (see

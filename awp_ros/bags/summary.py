@@ -14,9 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ['ReplaySummary', 'summarize_reports', 'stamp_ns']
+from awp_ros.ros.conversions import STATUS_NAMES
 
-_STATUS_NAMES = {0: 'ok', 1: 'warning', 2: 'invalid_input', 3: 'stale_input', 4: 'error'}
+__all__ = ['ReplaySummary', 'summarize_reports']
 
 
 @dataclass
@@ -91,7 +91,7 @@ def summarize_reports(reports: Iterable) -> ReplaySummary:
     values: dict[str, list] = {'awp_margin': [], 'fwp_margin': [], 'fws_margin': []}
     for r in reports:
         s.reports += 1
-        name = _STATUS_NAMES.get(int(r.status), f'status_{int(r.status)}')
+        name = STATUS_NAMES.get(int(r.status), f'status_{int(r.status)}')
         s.statuses[name] = s.statuses.get(name, 0) + 1
         if int(r.status) > 1:
             s.invalid += 1
@@ -112,8 +112,3 @@ def summarize_reports(reports: Iterable) -> ReplaySummary:
                                'median': float(np.median(x)), 'mean': float(x.mean()),
                                'max': float(x.max()), 'n': int(x.size)}
     return s
-
-
-def stamp_ns(stamp) -> int:
-    """Return a ``builtin_interfaces/Time`` as nanoseconds [ns]."""
-    return int(stamp.sec) * 10**9 + int(stamp.nanosec)

@@ -5,8 +5,9 @@ Writing to a path ending in ``.mcap`` or ``.db3`` produces that single file (Fox
 ``.mcap`` files directly; it is written in a temporary folder next to it and moved into
 place when complete); any other path becomes a rosbag2 directory. Topics get the
 definitions and RIHS01 hashes of the input bag they were copied from, or else those of
-:func:`awp_ros.bags.message_types.typestore`. Every failure raises :class:`~awp_ros.errors.BagError`
-naming the file and the problem, and leaves no partial output behind.
+:func:`awp_ros.bags.message_types.typestore`. Every failure raises
+:class:`~awp_ros.errors.BagError` naming the file and the problem, and leaves no partial output
+behind.
 """
 
 from __future__ import annotations
@@ -155,7 +156,7 @@ def reliable_qos(depth: int = 1000):
 
 
 def remove_path(path: Path) -> None:
-    """Remove ``path`` if it exists: a directory with its contents (a rosbag2 folder), or a file."""
+    """Remove ``path`` if it exists: a directory with its contents (rosbag2 folder), or a file."""
     if path.is_dir():
         shutil.rmtree(path)
     elif path.exists():

@@ -9,10 +9,10 @@ Reads the joint states and contacts of ``BAG`` (default: the default bag,
 ``config/hyq_gait.mcap``), feeds them to :class:`awp_ros.ros.pipeline.Pipeline` in recorded order
 as ``awp_node`` does (the first pass warms up, the last is timed) and prints, per joint state,
 the mean and median wall time of :meth:`~awp_ros.ros.pipeline.Pipeline.on_joint_state` [ms], the
-mean of each evaluation stage (:data:`awp_ros.evaluation.evaluator.STAGES`) and of the FWS amortised over
-all joint states, the rest (report and input conversion), and the means by number of stance
-legs. Its last line is one JSON object. Output messages other than the report are not built
-(as in a node without subscribers to them).
+mean of each evaluation stage (:data:`awp_ros.evaluation.evaluator.STAGES`) and of the FWS
+amortised over all joint states, the rest (report and input conversion), and the means by number
+of stance legs. Its last line is one JSON object. Output messages other than the report are not
+built (as in a node without subscribers to them).
 """
 
 from __future__ import annotations
@@ -37,9 +37,11 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2) -> dict:
 
     from awp_ros.bags.reader import read_bag
     from awp_ros.evaluation.evaluator import STAGES
-    from awp_ros.bags.replay import load_parameters, make_pipeline
+    from awp_ros.robot.config import load_parameters
+    from awp_ros.ros.pipeline import Pipeline
 
-    pipeline = make_pipeline(load_parameters(robot=robot))
+    params, base_dir = load_parameters(robot)
+    pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
     types = {'/joint_states': JointState, '/contacts': ContactState}
     msgs = [(m.topic, deserialize_message(m.data, types[m.topic]))
             for m in read_bag(bag, topics=list(types))]

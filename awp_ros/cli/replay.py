@@ -25,7 +25,14 @@ import json
 from pathlib import Path
 import sys
 
+import yaml
+
+from awp_ros.bags.player import play_bag
+from awp_ros.bags.replay import replay_bag
 from awp_ros.cli.support import run_main
+from awp_ros.robot.config import load_parameters
+from awp_ros.ros.cycle import OUTPUTS
+from awp_ros.ros.pipeline import Pipeline
 
 __all__ = ['main', 'parse_override']
 
@@ -34,13 +41,12 @@ PROG = 'awp_replay'
 
 def parse_override(text: str) -> tuple[str, object]:
     """
-    Parse ``key=value`` or ``key:=value``; the value is read as YAML (``true``, ``0.5``,
-    ``[0, 0, 1]``), like ``ros2 run ... -p``.
+    Parse ``key=value`` or ``key:=value``.
+
+    The value is read as YAML (``true``, ``0.5``, ``[0, 0, 1]``), like ``ros2 run ... -p``.
 
     :raises argparse.ArgumentTypeError: no ``=``.
     """
-    import yaml
-
     sep = ':=' if ':=' in text else '='
     key, eq, value = text.partition(sep)
     if not eq or not key:
@@ -59,8 +65,6 @@ def _remap(text: str) -> tuple[str, str]:
 
 
 def _parser() -> argparse.ArgumentParser:
-    from awp_ros.ros.cycle import OUTPUTS
-
     p = argparse.ArgumentParser(
         prog=PROG, description='Replay a rosbag2 (mcap or sqlite3) through the awp_node '
         'pipeline into a new bag, or play it onto live DDS with --play.')
@@ -88,7 +92,7 @@ def _parser() -> argparse.ArgumentParser:
                    metavar='NAME', help=f'outputs to write, of {", ".join(OUTPUTS)} '
                    '(default: all; awp and fwp are ~35 kB a cycle)')
     g.add_argument('--no-inputs', action='store_true',
-                   help='do not copy the input bag\'s topics into OUT_BAG')
+                   help="do not copy the input bag's topics into OUT_BAG")
     g.add_argument('--storage', choices=['mcap', 'sqlite3'], default='mcap',
                    help='storage of a directory OUT_BAG (default: %(default)s)')
     g.add_argument('--no-compress', action='store_true',
@@ -124,10 +128,8 @@ def _run(args) -> int:
 
 
 def _replay(args) -> int:
-    from awp_ros.bags.replay import load_parameters, make_pipeline, replay_bag
-
-    params = load_parameters(args.params_file, robot=args.robot, overrides=dict(args.param))
-    pipeline = make_pipeline(params)
+    params, base_dir = load_parameters(args.params_file or args.robot, dict(args.param))
+    pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
     topics = {'joint_states': args.joint_states, 'contacts': args.contacts, 'imu': args.imu}
     summary = replay_bag(args.in_bag, args.output, pipeline=pipeline, topics=topics,
                          node_name=args.node_name, outputs=args.outputs,
@@ -147,8 +149,6 @@ def _replay(args) -> int:
 
 def _play(args) -> int:
     import rclpy
-
-    from awp_ros.bags.player import play_bag
 
     rclpy.init()
     try:

@@ -23,8 +23,6 @@ import argparse
 import os
 from pathlib import Path
 import shlex
-import signal
-import subprocess
 import sys
 import threading
 import time
@@ -38,27 +36,14 @@ from awp_ros.cli.support import run_main
 from awp_ros.demo.plot import MarginSeries, plot_margins
 from awp_ros.demo.recorder import discover_outputs, Recorder
 from awp_ros.demo.table import ReportTable, TABLE_HEADER
-from awp_ros.errors import AwpError, BagError, ConfigError
+from awp_ros.errors import AwpError, BagError
 from awp_ros.gait.bag import default_bag_path
-from awp_ros.robot.config import find_config_file
+from awp_ros.node.launcher import start_node, stop_node
+from awp_ros.robot.config import find_parameters_file, load_config
 
 __all__ = ['main']
 
 PROG = 'awp_demo'
-
-
-def _params_file(robot: str) -> Path:
-    from awp_ros.robot.config import config_dirs
-
-    path = Path(robot)
-    if path.suffix in ('.yaml', '.yml'):
-        if not path.is_file():
-            raise ConfigError(f'params file {robot!r} does not exist')
-        return path
-    found = find_config_file(f'{robot}.yaml')
-    if found is not None:
-        return found
-    raise ConfigError(f'no config/{robot}.yaml found in {[str(d) for d in config_dirs()]}')
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -78,7 +63,7 @@ def _parser() -> argparse.ArgumentParser:
                    help='node name; outputs on /NODE_NAME/... (default: %(default)s)')
     p.add_argument('--node-command', default=None,
                    help='command starting the node, e.g. "ros2 run awp_ros awp_node" '
-                        '(default: this Python with -m awp_ros.node.node); --ros-args '
+                        '(default: the awp_node script of this Python); --ros-args '
                         '--params-file and the node name are appended')
     p.add_argument('--startup-timeout', type=float, default=60.0,
                    help='seconds to wait for awp_node to come up')
@@ -104,13 +89,11 @@ def _run(args) -> int:
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
 
-    from awp_ros.robot.config import load_config
-
     if not args.rate > 0:
         raise BagError(f'--rate must be > 0, got {args.rate!r}')
     bag = Path(args.bag) if args.bag else default_bag_path()
     info = bag_info(bag)
-    params = _params_file(args.robot)
+    params = find_parameters_file(args.robot)
     feet = load_config(params).feet
     inputs = {topic: msgtype for topic, msgtype in INPUT_TOPICS.values()
               if topic in info.topics}
@@ -123,15 +106,11 @@ def _run(args) -> int:
     out_png = out_dir / 'awp_demo_margins.png'
     for old in (out_bag, out_png):
         remove_path(old)
-    log = open(out_dir / 'awp_node.log', 'wb')
-    base = (shlex.split(args.node_command) if args.node_command
-            else [sys.executable, '-m', 'awp_ros.node.node'])
-    cmd = base + ['--ros-args', '--params-file', str(params), '-r',
-                  f'__node:={args.node_name}']
-    if '/imu' in inputs:
-        cmd += ['-p', 'use_imu:=true']       # the bag's IMU gives the base orientation
-    proc = subprocess.Popen(cmd, stdout=log, stderr=subprocess.STDOUT,
-                            start_new_session=True)
+    extra = ['-p', 'use_imu:=true'] if '/imu' in inputs else []  # the bag's IMU: base motion
+    proc = start_node(robot=None, params_file=params, ros_args=(
+        '-r', f'__node:={args.node_name}', *extra), log_path=out_dir / 'awp_node.log',
+        command=shlex.split(args.node_command) if args.node_command else None,
+        new_session=True)
     out = sys.stdout
     say = (lambda text: None) if args.quiet else (
         lambda text: (out.write(text + '\n'), out.flush()))
@@ -180,8 +159,7 @@ def _run(args) -> int:
                 rec.t0_wall = None        # stop writing
             reports = list(rec.reports)
     finally:
-        _stop(proc)
-        log.close()
+        stop_node(proc, timeout_s=5.0)
         node.destroy_node()
         if rclpy.ok():
             rclpy.shutdown()
@@ -221,21 +199,6 @@ class _NodeFailed(AwpError):
             pass
         state = f'exited with code {code}' if code is not None else 'published no report'
         super().__init__(f'awp_node {state}; its log ({log_path}):\n{tail}')
-
-
-def _stop(proc) -> None:
-    """Stop the node process (SIGINT, then SIGTERM, then SIGKILL)."""
-    for sig, wait in ((signal.SIGINT, 5.0), (signal.SIGTERM, 3.0), (signal.SIGKILL, 3.0)):
-        if proc.poll() is not None:
-            return
-        try:
-            os.killpg(proc.pid, sig)
-        except ProcessLookupError:
-            return
-        try:
-            proc.wait(timeout=wait)
-        except subprocess.TimeoutExpired:
-            continue
 
 
 if __name__ == '__main__':

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from awp_ros.bags.summary import stamp_ns
+from awp_ros.ros.conversions import stamp_to_ns
 
 __all__ = ['MarginSeries', 'plot_margins', 'STANCE_COLOURS', 'STANCE_LABELS']
 
@@ -25,9 +25,11 @@ STANCE_LABELS = {4: '4 feet down', 3: '3 feet (crawl swing)', 2: '2 feet (trot)'
 @dataclass
 class MarginSeries:
     """
-    Per-report time series: ``t`` [s] from the first report, margins [N, N.m] (NaN when
+    Per-report time series.
 
-    not evaluated; ``fws`` NaN also where it was not computed for that very cycle)."""
+    ``t`` [s] from the first report, margins [N, N.m] (NaN when not evaluated; ``fws`` NaN also
+    where it was not computed for that very cycle).
+    """
 
     feet: tuple[str, ...]
     t: np.ndarray
@@ -44,8 +46,8 @@ class MarginSeries:
         """Build from ``FeasibilityReport`` messages (rclpy or rosbags objects)."""
         reports = list(reports)
         feet = tuple(feet)
-        stamp = np.array([stamp_ns(r.header.stamp) for r in reports], dtype=np.int64)
-        fws_stamp = np.array([stamp_ns(r.fws_stamp) for r in reports], dtype=np.int64)
+        stamp = np.array([stamp_to_ns(r.header.stamp) for r in reports], dtype=np.int64)
+        fws_stamp = np.array([stamp_to_ns(r.fws_stamp) for r in reports], dtype=np.int64)
         t = (stamp - stamp[0]) * 1e-9 if reports else np.zeros(0)
         stance = np.array([[f in r.stance_feet for f in feet] for r in reports],
                           dtype=bool).reshape(len(reports), len(feet))

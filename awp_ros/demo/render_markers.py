@@ -29,7 +29,7 @@ __all__ = ['main', 'render_marker_array']
 
 def _pose_points(m: Marker) -> np.ndarray:
     """Return the marker's points (or its position) in the header frame, pose applied."""
-    from awp_ros.ros.markers import quaternion_matrix
+    from awp_ros.geometry.linalg import quaternion_matrix
     o = m.pose.orientation
     R = quaternion_matrix([o.x, o.y, o.z, o.w]) if (o.x, o.y, o.z, o.w) != (0, 0, 0, 0) \
         else np.eye(3)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import threading
 
-from awp_ros.bags.summary import stamp_ns
+from awp_ros.ros.conversions import stamp_to_ns
 
 __all__ = ['TABLE_HEADER', 'format_row', 'ReportTable']
 
@@ -19,10 +19,12 @@ TABLE_HEADER = f'{"t [s]":>7}  {"stance":<12}  {"FWP margin":>10}  {"in FWP":<6}
 
 def format_row(report, feet, t0_ns: int) -> str:
     """
-    Return one table row: time [s] since ``t0_ns``, stance (``--`` = swing), FWP margin
+    Return one table row.
 
-    [N, N.m], FWP membership, distance off the FWP hull, and the report's ``feasible``."""
-    t = (stamp_ns(report.header.stamp) - t0_ns) * 1e-9
+    Time [s] since ``t0_ns``, stance (``--`` = swing), FWP margin [N, N.m], FWP membership,
+    distance off the FWP hull, and the report's ``feasible``.
+    """
+    t = (stamp_to_ns(report.header.stamp) - t0_ns) * 1e-9
     stance = ' '.join(f.split('_')[0].upper()[:2] if f in report.stance_feet else '--'
                       for f in feet)
     if int(report.status) > 1:
@@ -53,7 +55,7 @@ class ReportTable:
             new = self.rec.reports[self.seen:]
         self.seen += len(new)
         for r in new:
-            stamp = stamp_ns(r.header.stamp)
+            stamp = stamp_to_ns(r.header.stamp)
             if stamp >= self.next_ns:
                 self.say(format_row(r, self.feet, self.t0_ns))
                 self.next_ns = stamp - (stamp - self.t0_ns) % self.period_ns + self.period_ns

@@ -92,7 +92,7 @@ class FeasibilityEvaluator:
 
     @property
     def feet(self) -> tuple[str, ...]:
-        """Return the config's feet (contact frames)."""
+        """Return the config's feet, i.e. its contact frames."""
         return self.config.feet
 
     def standing_state(self, **kw) -> RobotState:

@@ -301,7 +301,7 @@ def _solid_faces(V: np.ndarray, origin: np.ndarray, scale: float, N: np.ndarray,
 def _edge_directions(V: np.ndarray, nf: np.ndarray, ng: np.ndarray, shared: np.ndarray,
                      scale: float) -> np.ndarray:
     """
-    Unit edge directions: n_f x n_g, or the chord between the farthest shared points.
+    Return unit edge directions: n_f x n_g, or the chord between the farthest shared points.
 
     The cross product loses accuracy as 1 / sin(angle) for nearly coplanar facets, the chord
     as scale / length for short edges; the better-conditioned one is used.

@@ -36,6 +36,7 @@ from awp_ros.geometry.exterior import hodge_normal, wedge_rows, wedge_table
 
 __all__ = [
     'SubsetTree',
+    'quaternion_matrix',
     'cross3',
     'distinct_columns',
     'hyperplane_normals',
@@ -361,3 +362,12 @@ def _bit_weights(n: int) -> np.ndarray:
     out = 2.0 ** np.arange(n)
     out.setflags(write=False)
     return out
+
+
+def quaternion_matrix(q: np.ndarray) -> np.ndarray:
+    """Return the rotation matrix (3, 3) of a unit quaternion ``[x, y, z, w]``."""
+    x, y, z, w = np.asarray(q, dtype=float) / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])

@@ -2,9 +2,9 @@ r"""
 Signed Euclidean margins of a point with respect to a polytope, and directional margins.
 
 Every set of awp_ros (force polytopes in R^3, AWP / FWP / FWS in R^6) is a
-:class:`~awp_ros.geometry.polytope.Polytope` ``P = {x : A x <= b, x = o + U y}`` of affine dimension
-``r``. For a point ``w`` (a wrench ``[f; tau]`` in [N] and [N.m], world-aligned axes, origin at
-the CoM; or a force in [N]) this module reports
+:class:`~awp_ros.geometry.polytope.Polytope` ``P = {x : A x <= b, x = o + U y}`` of affine
+dimension ``r``. For a point ``w`` (a wrench ``[f; tau]`` in [N] and [N.m], world-aligned axes,
+origin at the CoM; or a force in [N]) this module reports
 
 .. math::
 

@@ -3,8 +3,8 @@ Facet normals of a Minkowski sum of lifted 3D polytopes, by face combinations.
 
 The engine of :mod:`awp_ros.wrench.feasible_wrench_set`. For stance feet at ``p_k`` [m] relative
 to the CoM (world-aligned axes) and per-leg polytopes ``Q_k`` [N] (their faces and normal
-cones from :mod:`awp_ros.geometry.face_lattice`), the set is ``S = sum_k L_k Q_k`` in R^6; all is in
-the coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``r``, where
+cones from :mod:`awp_ros.geometry.face_lattice`), the set is ``S = sum_k L_k Q_k`` in R^6; all is
+in the coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``r``, where
 ``M_k = U^T L_k``. The unit outward normals ``a`` of its facets are found by:
 
 (2) every facet of ``S`` with unit normal ``a`` is ``sum_k M_k G_k`` for faces ``G_k`` of
@@ -15,9 +15,9 @@ the coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``r``
     ``X_k`` of each face's directions is a ``d_k``-vector and ``a = *(X_1 ^ ... ^ X_K)``;
 (3) the choice is kept only if ``c_k = M_k^T a`` lies in the normal cone of ``G_k`` for
     every leg, up to one global sign (``m . c_k >= 0`` for the face's check vectors ``m``,
-    :mod:`awp_ros.geometry.face_lattice`); each check value ``m . c_k = a . (M_k m)`` is a determinant
-    too, the pairing of ``(M_k m) ^ X_k`` with the wedge of the other legs' faces, so one
-    small matrix product per leg tests every combination at once (no loop over candidates).
+    :mod:`awp_ros.geometry.face_lattice`); each check value ``m . c_k = a . (M_k m)`` is a
+    determinant too, the pairing of ``(M_k m) ^ X_k`` with the wedge of the other legs' faces, so
+    one small matrix product per leg tests every combination at once (no loop over candidates).
 
 The caller then sets each row's offset to the support function of ``S`` (an exact
 supporting halfspace whatever ``a`` is). Every tolerance in (3) only admits extra (redundant
@@ -146,7 +146,7 @@ def _stack(items: list[tuple], r: int, d: int) -> tuple[np.ndarray, ...]:
 def _pattern_normals(sets: list, dims: list[int], r: int, scale: float, cone_tol: float,
                      normal_tol: float) -> tuple[np.ndarray, int]:
     """
-    Normals of every face choice of one pattern (a batch of leg tuples) passing (3).
+    Return the normals of every face choice of one pattern (a batch of leg tuples) passing (3).
 
     ``scale`` bounds the norm of every lifted unit vector, so ``bound = scale ** r`` bounds
     ``|a|`` times the norm of a lifted check vector (Hadamard) and ``cone_tol * bound`` is an
@@ -232,7 +232,7 @@ def _pattern_normals(sets: list, dims: list[int], r: int, scale: float, cone_tol
     idx = np.concatenate([pos, neg])
     b, rest = idx // N, idx % N
     W = wedge_rows(pre[J - 1][b, rest // ns[-1]], Xs[-1][b, rest % ns[-1]], r,
-                    deg_pre[J - 1], dims[-1])
+                   deg_pre[J - 1], dims[-1])
     a = hodge_normal(W)
     a[pos.size:] *= -1.0
     norm = np.linalg.norm(a, axis=1)
@@ -242,6 +242,6 @@ def _pattern_normals(sets: list, dims: list[int], r: int, scale: float, cone_tol
 
 def _wedge_into(name: str, X: np.ndarray, Y: np.ndarray, r: int, p: int,
                 q: int) -> np.ndarray:
-    """Return :func:`~awp_ros.geometry.exterior.wedge_all` written to the workspace buffer ``name``."""
+    """Return :func:`~awp_ros.geometry.exterior.wedge_all` written to workspace buffer ``name``."""
     out = workspace(name, (X.shape[0], X.shape[1], Y.shape[1] * comb(r, p + q)))
     return wedge_all(X, Y, r, p, q, out=out)

@@ -37,10 +37,11 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
 from std_msgs.msg import Header
 
-__all__ = ['NodeDiagnostics', 'STATUS_NAMES']
+from awp_ros.ros.conversions import STATUS_NAMES
+
+__all__ = ['NodeDiagnostics']
 
 #: FeasibilityReport.STATUS_* value -> name used in the diagnostics keys.
-STATUS_NAMES = ('ok', 'warning', 'invalid_input', 'stale_input', 'error')
 _WARNING, _ERROR = 1, 4
 _MAX_LEGS = 16            # stance sizes counted per period (larger ones in the last bin)
 _REASON_CHARS = 200       # characters of a reason quoted in a status message
@@ -241,9 +242,9 @@ class NodeDiagnostics:
         c50, c99 = self.compute_ms.percentiles([50, 99])
         l50, l99 = self.latency_ms.percentiles([50, 99])
         values = [KeyValue(key=f'reports {name} (period)', value=str(int(n)))
-                  for name, n in zip(STATUS_NAMES, self.reports_period)]
+                  for name, n in zip(STATUS_NAMES.values(), self.reports_period)]
         values += [KeyValue(key=f'reports {name} (total)', value=str(int(n)))
-                   for name, n in zip(STATUS_NAMES, self.reports_total)]
+                   for name, n in zip(STATUS_NAMES.values(), self.reports_total)]
         legs = ', '.join(f'{k}:{int(n)}' for k, n in enumerate(self.stance_period) if n)
         values += [KeyValue(key='compute time p50 [ms]', value=f'{c50:.3f}'),
                    KeyValue(key='compute time p99 [ms]', value=f'{c99:.3f}'),

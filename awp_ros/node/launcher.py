@@ -44,24 +44,34 @@ def ros_env(domain_id: int | None = None) -> dict[str, str]:
     return env
 
 
-def start_node(*, env: dict[str, str], robot: str | None = 'hyq', namespace: str = '',
+def start_node(*, env: dict[str, str] | None = None, robot: str | None = 'hyq',
+               namespace: str = '', params_file: str | os.PathLike | None = None,
                params: dict | None = None, ros_args: tuple[str, ...] = (),
-               log_path: str | os.PathLike | None = None) -> subprocess.Popen:
+               command: list[str] | None = None, log_path: str | os.PathLike | None = None,
+               new_session: bool = False) -> subprocess.Popen:
     """
     Start ``awp_node`` as its own process.
 
-    :param env: the environment (see :func:`ros_env`).
+    :param env: the environment (see :func:`ros_env`; default ``os.environ``).
     :param robot: the ``robot`` parameter (config name or YAML path); None leaves it out.
     :param namespace: the node's namespace (``-r __ns:=...``), '' = root.
+    :param params_file: a parameters file (``--params-file``).
     :param params: more parameters, ``{name: value}`` (values as ``-p name:=value`` text;
         lists and strings as YAML).
     :param ros_args: more ``--ros-args`` arguments.
+    :param command: the node's command (default :func:`node_command`), e.g.
+        ``['ros2', 'run', 'awp_ros', 'awp_node']``.
     :param log_path: file receiving the node's stdout and stderr (default a temporary
         file; ``proc.log_path`` holds it). A file, not a pipe: a pipe nobody reads would
         block a node that logs a lot.
+    :param new_session: start the node in a process group of its own, so that
+        :func:`stop_node` signals the whole group (a ``ros2 run`` wrapper and its child)
+        and a Ctrl-C in the terminal reaches only the caller.
     :return: the process (``proc.log_path`` set).
     """
     args = []
+    if params_file is not None:
+        args += ['--params-file', str(params_file)]
     if robot is not None:
         args += ['-p', f'robot:={robot}']
     for name, value in (params or {}).items():
@@ -75,12 +85,14 @@ def start_node(*, env: dict[str, str], robot: str | None = 'hyq', namespace: str
         os.close(fd)
     log = open(log_path, 'w')  # noqa: SIM115 -- handed to the child, closed below
     try:
-        proc = subprocess.Popen(node_command() + ['--ros-args', *args, *ros_args], env=env,
-                                stdout=log, stderr=subprocess.STDOUT)
+        proc = subprocess.Popen((command or node_command()) + ['--ros-args', *args, *ros_args],
+                                env=env, stdout=log, stderr=subprocess.STDOUT,
+                                start_new_session=new_session)
     finally:
         log.close()
     proc.log_path = str(log_path)
     proc.log_is_temporary = temporary
+    proc.new_session = new_session
     return proc
 
 
@@ -88,15 +100,24 @@ def stop_node(proc: subprocess.Popen, timeout_s: float = 10.0) -> str:
     """
     Stop a node started by :func:`start_node`; return its log.
 
-    SIGINT, then SIGKILL after ``timeout_s`` [s]; a temporary log file is removed.
+    SIGINT, then SIGTERM, then SIGKILL, each after ``timeout_s`` [s] without exit (to the
+    whole process group when started with ``new_session``); a temporary log is removed.
     """
-    if proc.poll() is None:
-        proc.send_signal(signal.SIGINT)
+    group = getattr(proc, 'new_session', False)
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+        if proc.poll() is not None:
+            break
+        try:
+            if group:
+                os.killpg(proc.pid, sig)
+            else:
+                proc.send_signal(sig)
+        except ProcessLookupError:
+            break
         try:
             proc.wait(timeout=timeout_s)
         except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
+            continue
     path = getattr(proc, 'log_path', None)
     if not path:
         return ''

@@ -73,11 +73,11 @@ from awp_ros.errors import AwpError
 from awp_ros.node.diagnostics import NodeDiagnostics
 from awp_ros.node.input_drain import InputDrain
 from awp_ros.node.marker_worker import MarkerWorker
-from awp_ros.node.parameters import limit_blas_threads, NodeParameters
+from awp_ros.node.parameters import NodeParameters
 from awp_ros.ros.conversions import error_report, stamp_to_ns
 from awp_ros.ros.pipeline import Pipeline
 from awp_ros.ros.pipeline_params import PipelineParams
-from awp_ros.runtime import freeze_startup_objects, keep_freed_memory
+from awp_ros.runtime import freeze_startup_objects, keep_freed_memory, limit_blas_threads
 
 __all__ = ['AwpNode', 'main']
 
@@ -94,8 +94,10 @@ class AwpNode(NodeParameters, Node):
         super().__init__(node_name, **kwargs)
         self.config_errors: list[str] = []
         self._declare_all()
-        self._blas = limit_blas_threads(self.get_parameter('blas_threads').value,
-                                        self.get_logger())
+        blas_threads = self.get_parameter('blas_threads').value
+        self._blas = limit_blas_threads(blas_threads)
+        if self._blas is None and blas_threads > 0:
+            self.get_logger().warning('threadpoolctl is not installed; BLAS threads not limited')
         keep_freed_memory()
         self.pipeline: Pipeline | None = None
         self.model_error = ''

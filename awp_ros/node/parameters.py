@@ -25,7 +25,7 @@ from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.ros.pipeline import Pipeline
 from awp_ros.ros.pipeline_params import PARAMETER_DOCS, PipelineParams
 
-__all__ = ['limit_blas_threads', 'limit_value', 'NODE_PARAMETER_DOCS', 'NodeParameters',
+__all__ = ['limit_value', 'NODE_PARAMETER_DOCS', 'NodeParameters',
            'ROBOT_PARAMETER_DOCS', 'ROBOT_PREFIXES']
 
 _T = Parameter.Type
@@ -266,21 +266,3 @@ def limit_value(pair) -> float | list[float]:
     """Return a torque range as a parameter value: L when symmetric, else [min, max]."""
     lo, hi = (float(x) for x in pair)
     return hi if lo == -hi else [lo, hi]
-
-
-def limit_blas_threads(n: int, logger):
-    """
-    Limit the BLAS thread pools of this process to ``n`` threads (0: leave them).
-
-    OpenBLAS threads busy-wait between calls; on a machine whose cores are shared with the
-    DDS threads, the message publisher and other processes they stalled single FWS
-    evaluations for ~300 ms (measured on 2 cores); with 1 thread the same took ~10 ms.
-    """
-    if n <= 0:
-        return None
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:
-        logger.warning('threadpoolctl is not installed; BLAS threads not limited')
-        return None
-    return threadpool_limits(limits=n, user_api='blas')

@@ -39,8 +39,9 @@ import yaml
 
 from awp_ros.errors import ConfigError
 
-__all__ = ['RobotConfig', 'config_dirs', 'find_config_file', 'available_configs', 'load_config',
-           'DEFAULT_ROBOT']
+__all__ = ['DEFAULT_ROBOT', 'RobotConfig', 'available_configs', 'config_dirs', 'find_config_file',
+           'find_parameters_file', 'load_config', 'load_parameters', 'read_parameters',
+           'ros_parameters']
 
 DEFAULT_ROBOT = 'hyq'
 _ENV_CONFIG_DIR = 'AWP_ROS_CONFIG_DIR'
@@ -119,7 +120,7 @@ class RobotConfig:
         """
         if not isinstance(params, Mapping):
             raise ConfigError(f'robot config must be a mapping, got {type(params).__name__}')
-        p = _nest(_ros_parameters(params))
+        p = _nest(ros_parameters(params))
         missing = [k for k in ('robot_name', 'urdf', 'feet') if k not in p]
         if missing:
             raise ConfigError(f'robot config lacks required keys {missing}')
@@ -153,18 +154,59 @@ class RobotConfig:
     @classmethod
     def from_yaml(cls, path: str | os.PathLike) -> RobotConfig:
         """Read a config from a YAML (ROS 2 parameters) file."""
-        path = Path(path)
-        try:
-            text = path.read_text(encoding='utf-8')
-        except OSError as exc:
-            raise ConfigError(f'cannot read robot config {str(path)!r}: {exc}') from exc
-        try:
-            data = yaml.safe_load(text)
-        except yaml.YAMLError as exc:
-            raise ConfigError(f'robot config {str(path)!r} is not valid YAML: {exc}') from exc
-        if not isinstance(data, Mapping):
-            raise ConfigError(f'robot config {str(path)!r} must hold a mapping')
-        return cls.from_dict(data, base_dir=path.resolve().parent)
+        values, base_dir = read_parameters(path)
+        return cls.from_dict(values, base_dir=base_dir)
+
+
+def read_parameters(path: str | os.PathLike) -> tuple[dict, Path]:
+    """
+    Return the merged ``ros__parameters`` of a parameters file and the file's folder.
+
+    :raises ConfigError: the file cannot be read, is not YAML or holds no mapping.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding='utf-8')
+    except OSError as exc:
+        raise ConfigError(f'cannot read parameters file {str(path)!r}: {exc}') from exc
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f'parameters file {str(path)!r} is not valid YAML: {exc}') from exc
+    if not isinstance(data, Mapping):
+        raise ConfigError(f'parameters file {str(path)!r} must hold a mapping')
+    return ros_parameters(data), path.resolve().parent
+
+
+def find_parameters_file(name_or_path: str | os.PathLike = DEFAULT_ROBOT) -> Path:
+    """
+    Return the parameters file of a robot: a YAML path, or ``<name>.yaml`` in :func:`config_dirs`.
+
+    :raises ConfigError: no such file or name (the message lists the known names).
+    """
+    text = os.fspath(name_or_path)
+    path = Path(text)
+    if path.suffix in ('.yaml', '.yml') or os.sep in text or path.is_file():
+        if not path.is_file():
+            raise ConfigError(f'robot config file {text!r} does not exist')
+        return path
+    found = find_config_file(f'{text}.yaml')
+    if found is None:
+        raise ConfigError(f'unknown robot {text!r}; known robots are {available_configs()}')
+    return found
+
+
+def load_parameters(name_or_path: str | os.PathLike = DEFAULT_ROBOT,
+                    overrides: Mapping | None = None) -> tuple[dict, Path]:
+    """
+    Return a robot's parameters (its file's, then ``overrides``) and the file's folder.
+
+    What ``awp_node --ros-args --params-file FILE -p key:=value`` starts with, for the
+    tools that run the node's pipeline without a node (replay, benchmarks).
+    """
+    values, base_dir = read_parameters(find_parameters_file(name_or_path))
+    values.update(overrides or {})
+    return values, base_dir
 
 
 def config_dirs() -> list[Path]:
@@ -216,33 +258,25 @@ def load_config(name_or_path: str | os.PathLike = DEFAULT_ROBOT) -> RobotConfig:
 
     :raises ConfigError: no such file or name (the message lists the known names).
     """
-    text = os.fspath(name_or_path)
-    path = Path(text)
-    if path.suffix in ('.yaml', '.yml') or os.sep in text or path.is_file():
-        if not path.is_file():
-            raise ConfigError(f'robot config file {text!r} does not exist')
-        return RobotConfig.from_yaml(path)
-    for d in config_dirs():
-        candidate = d / f'{text}.yaml'
-        if candidate.is_file():
-            return RobotConfig.from_yaml(candidate)
-    msg = f'unknown robot {text!r}; known robots are {available_configs()}'
-    raise ConfigError(msg)
+    return RobotConfig.from_yaml(find_parameters_file(name_or_path))
 
 
 # -- helpers -------------------------------------------------------------------------------
 
 
-def _ros_parameters(params: Mapping) -> Mapping:
-    """Merge the ``ros__parameters`` sections of a parameters file, or return params."""
+def ros_parameters(params: Mapping) -> dict:
+    """
+    Merge the ``ros__parameters`` sections of a parameters file's mapping.
+
+    A mapping without such a section (the section itself, or rclpy's flat parameters) is
+    returned as a copy.
+    """
     sections = [v['ros__parameters'] for v in params.values()
                 if isinstance(v, Mapping) and isinstance(v.get('ros__parameters'), Mapping)]
-    if 'ros__parameters' in params and isinstance(params['ros__parameters'], Mapping):
+    if isinstance(params.get('ros__parameters'), Mapping):
         sections.append(params['ros__parameters'])
-    if not sections:
-        return params
     merged: dict = {}
-    for section in sections:
+    for section in sections or [params]:
         merged.update(section)
     return merged
 

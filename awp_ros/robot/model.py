@@ -242,6 +242,14 @@ class RobotModel:
             raise ConfigError(f'standing_posture lacks joints {missing}')
         return np.array([posture[n] for n in self.joint_names])
 
+    @property
+    def root_link(self) -> str:
+        """Return the URDF root link: the body fixed to the free flyer (e.g. ``base_link``)."""
+        for frame in self.model.frames:
+            if frame.parentJoint == 1 and frame.type == pin.FrameType.BODY:
+                return frame.name
+        return ''
+
     # -- per cycle ---------------------------------------------------------------------
 
     def joint_vector(self, values: Mapping[str, float]) -> np.ndarray:

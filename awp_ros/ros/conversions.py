@@ -1,14 +1,15 @@
 """
 Conversions between ROS messages and the core's objects (the node's and replay's glue).
 
-- :class:`~awp_ros.geometry.polytope.Polytope` <-> ``awp_ros_msgs/Polytope``: numpy arrays go into the
-  ``float64[]`` fields as ``array.array('d')`` built from their bytes (no per-element Python
+- :class:`~awp_ros.geometry.polytope.Polytope` <-> ``awp_ros_msgs/Polytope``: numpy arrays go into
+  the ``float64[]`` fields as ``array.array('d')`` built from their bytes (no per-element Python
   objects); matrices are flattened row-major (element ``(i, j)`` of a ``k x n`` matrix at
   ``i * n + j``), as ``Polytope.msg`` documents.
-- :class:`~awp_ros.evaluation.evaluator.FeasibilityResult` -> ``FeasibilityReport``, ``WrenchPolytope``
-  (AWP / FWP / FWS) and ``LegPolytopes``. Wrenches ``[f; tau]`` [N, N.m] and forces [N] are in
-  the CoM-centred frame with world-aligned axes (REP 103) whose name the caller passes in the
-  header (parameter ``wrench_frame_id``); foot positions [m] relative to the CoM, same axes.
+- :class:`~awp_ros.evaluation.evaluator.FeasibilityResult` -> ``FeasibilityReport``,
+  ``WrenchPolytope`` (AWP / FWP / FWS) and ``LegPolytopes``. Wrenches ``[f; tau]`` [N, N.m] and
+  forces [N] are in the CoM-centred frame with world-aligned axes (REP 103) whose name the caller
+  passes in the header (parameter ``wrench_frame_id``); foot positions [m] relative to the CoM,
+  same axes.
 - ``sensor_msgs/JointState`` + ``awp_ros_msgs/ContactState`` (+ ``sensor_msgs/Imu``) ->
   :class:`~awp_ros.robot.state.RobotState`. Message-level checks (array lengths, duplicate names,
   contact names that are not feet) raise :class:`~awp_ros.errors.InputError`; joints the
@@ -40,6 +41,7 @@ from awp_ros.robot.state import RobotState
 
 __all__ = [
     'KINDS',
+    'STATUS_NAMES',
     'error_report',
     'leg_polytopes_msg',
     'polytope_from_msg',
@@ -52,6 +54,14 @@ __all__ = [
 
 #: WrenchPolytope.kind of each wrench set name.
 KINDS = {'awp': WrenchPolytope.AWP, 'fwp': WrenchPolytope.FWP, 'fws': WrenchPolytope.FWS}
+#: ``FeasibilityReport.status`` -> its name, in status order (diagnostics, summaries, JSON).
+STATUS_NAMES = {
+    FeasibilityReport.STATUS_OK: 'ok',
+    FeasibilityReport.STATUS_WARNING: 'warning',
+    FeasibilityReport.STATUS_INVALID_INPUT: 'invalid_input',
+    FeasibilityReport.STATUS_STALE_INPUT: 'stale_input',
+    FeasibilityReport.STATUS_ERROR: 'error',
+}
 
 _NAN6 = np.full(6, np.nan)
 
@@ -65,8 +75,8 @@ def _shorten(items: Sequence, limit: int = 8) -> str:
 
 
 def stamp_to_ns(stamp: Time) -> int:
-    """Return a ``builtin_interfaces/Time`` as integer nanoseconds."""
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
+    """Return a ``builtin_interfaces/Time`` (rclpy's or a rosbags object) as integer [ns]."""
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
 
 
 def _doubles(x: np.ndarray) -> array:

@@ -37,24 +37,25 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
+import os
 import time
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport
 from builtin_interfaces.msg import Time
 import numpy as np
-import pinocchio as pin
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 
 from awp_ros.errors import AwpError, ConfigError, InputError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.evaluation.result import WrenchSetResult
-from awp_ros.robot.config import RobotConfig
+from awp_ros.geometry.linalg import quaternion_matrix
+from awp_ros.robot.config import load_config, RobotConfig, ros_parameters
 from awp_ros.ros.conversions import error_report, report_msg, robot_state_from_msgs, stamp_to_ns
 from awp_ros.ros.cycle import Cycle
 from awp_ros.ros.input_buffer import InputBuffer, stale_reason
-from awp_ros.ros.markers import MarkerStyle, quaternion_matrix
-from awp_ros.ros.pipeline_params import PipelineParams, ros_parameters
+from awp_ros.ros.markers import MarkerStyle
+from awp_ros.ros.pipeline_params import PipelineParams
 
 __all__ = ['MAX_REASON_CHARS', 'Pipeline']
 
@@ -92,24 +93,23 @@ class Pipeline:
         self._latest_fws_stance: tuple | None = None
 
     @classmethod
-    def from_parameters(cls, params: Mapping, *, robot: str | None = None) -> Pipeline:
+    def from_parameters(cls, params: Mapping, *, base_dir: str | os.PathLike | None = None,
+                        input_buffer: int = 10000) -> Pipeline:
         """
-        Build a pipeline from a parameters file's mapping (what the node reads).
+        Build a pipeline from the node's parameters (a parameters file's mapping, or flat).
 
-        The robot part comes from ``robot`` (a config name or path; default the mapping's
-        own ``robot`` key, else the mapping itself when it has ``robot_name``, else
-        ``hyq``), with ``robot_description`` (URDF XML) replacing its URDF when non-empty.
+        The robot comes from the ``robot`` key (a config name or path) when the mapping has
+        no ``robot_name`` of its own, else from the mapping's robot keys (``urdf`` relative
+        to ``base_dir``); ``robot_description`` (URDF XML) replaces the URDF when non-empty.
         """
         flat = ros_parameters(params)
-        name = robot if robot is not None else flat.get('robot') or None
-        if name is None and 'robot_name' in flat:
-            config = RobotConfig.from_dict(flat)
+        if flat.get('robot') and not flat.get('robot_name'):
+            config = load_config(flat['robot'])
         else:
-            from awp_ros.robot.config import load_config
-            config = load_config(name or 'hyq')
+            config = RobotConfig.from_dict(flat, base_dir=base_dir)
         if flat.get('robot_description'):
             config = replace(config, urdf=str(flat['robot_description']))
-        return cls(config, PipelineParams.from_dict(flat))
+        return cls(config, PipelineParams.from_dict(flat), input_buffer=input_buffer)
 
     # -- configuration ---------------------------------------------------------------------
 
@@ -121,11 +121,7 @@ class Pipeline:
     @property
     def root_link(self) -> str:
         """Return the URDF root link (the free flyer's child body), e.g. ``base_link``."""
-        model = self.evaluator.model.model
-        for frame in model.frames:
-            if frame.parentJoint == 1 and frame.type == pin.FrameType.BODY:
-                return frame.name
-        return ''
+        return self.evaluator.model.root_link
 
     def set_config(self, config: RobotConfig) -> None:
         """

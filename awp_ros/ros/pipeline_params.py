@@ -11,8 +11,9 @@ from dataclasses import dataclass, fields
 import math
 
 from awp_ros.errors import ConfigError
+from awp_ros.robot.config import ros_parameters
 
-__all__ = ['PARAMETER_DOCS', 'PipelineParams', 'ros_parameters']
+__all__ = ['PARAMETER_DOCS', 'PipelineParams']
 
 
 @dataclass(frozen=True)
@@ -48,8 +49,9 @@ class PipelineParams:
     @classmethod
     def from_dict(cls, params: Mapping) -> PipelineParams:
         """
-        Read the known keys of a parameters mapping (a params file, its ``ros__parameters``
-        section, or a flat mapping); other keys are ignored.
+        Read the known keys of a parameters mapping; other keys are ignored.
+
+        The mapping is a params file, its ``ros__parameters`` section, or a flat mapping.
 
         :raises ConfigError: a value of the wrong type or range.
         """
@@ -89,15 +91,3 @@ PARAMETER_DOCS = {
     'use_joint_velocities': 'use joint_states velocities (Coriolis terms of the bias '
                             'torques, seed eq. 1)',
 }
-
-
-def ros_parameters(params: Mapping) -> dict:
-    """Return the merged ``ros__parameters`` sections of a parameters file, or params."""
-    sections = [v['ros__parameters'] for v in params.values()
-                if isinstance(v, Mapping) and isinstance(v.get('ros__parameters'), Mapping)]
-    if isinstance(params.get('ros__parameters'), Mapping):
-        sections.append(params['ros__parameters'])
-    out: dict = {}
-    for section in sections or [params]:
-        out.update(section)
-    return out

@@ -88,7 +88,9 @@ def drive(*, rate_hz: float, duration_s: float, robot: str, namespace: str,
             js_pub.publish(_stamp(js, now))
         stamps[i] = now
     elapsed = time.perf_counter() - start
-    acked = all([p.wait_for_all_acked(rclpy.duration.Duration(seconds=60.0)) for p in pubs])
+    # Every publisher waits for its acknowledgements (a list, not a short-circuiting generator).
+    acks = [p.wait_for_all_acked(rclpy.duration.Duration(seconds=60.0)) for p in pubs]
+    acked = all(acks)
     if stamps_path:
         np.save(stamps_path, stamps)
     node.destroy_node()

@@ -97,7 +97,7 @@ def percentiles(x: np.ndarray) -> dict:
 
 
 def fill_usage(result: SoakResult, s: np.ndarray, t_start: float, t_end: float,
-           warmup_s: float) -> None:
+               warmup_s: float) -> None:
     """Fill CPU and RSS figures from the monitor's samples (drive window only)."""
     if len(s) < 2:
         return
@@ -118,7 +118,7 @@ def fill_usage(result: SoakResult, s: np.ndarray, t_start: float, t_end: float,
 
 
 def fill_timeline(result: SoakResult, s: np.ndarray, t_start: float, wall0_ns: int,
-              rcv: np.ndarray, latency: np.ndarray, step: float) -> None:
+                  rcv: np.ndarray, latency: np.ndarray, step: float) -> None:
     """
     Fill the table rows, one per ``step`` [s] from the drive's start to the last report.
 

@@ -194,7 +194,7 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     samples = monitor.array() if monitor else np.zeros((0, 3))
     fill_usage(result, samples, t_start, t_stop, warmup_s)
     fill_timeline(result, samples, t_start, int(sent[0]), rcv, latency,
-              timeline_step_s or max(duration_s / 12, sample_period_s))
+                  timeline_step_s or max(duration_s / 12, sample_period_s))
     fill_node_diagnostics(result, diag, probe.lock)
     return result
 

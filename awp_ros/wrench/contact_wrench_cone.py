@@ -123,7 +123,7 @@ def friction_pyramids(normals: np.ndarray, mu: np.ndarray, sides: int = 4, *,
               - (mu * np.cos(np.pi / sides))[:, None, None] * n[:, None, :])
     facets /= np.linalg.norm(facets, axis=2)[:, :, None]
     rays = n[:, None, :] + mu[:, None, None] * (c_ph[None, :, None] * t1[:, None, :]
-                                                 + s_ph[None, :, None] * t2[:, None, :])
+                                                + s_ph[None, :, None] * t2[:, None, :])
     rays /= np.linalg.norm(rays, axis=2)[:, :, None]
     return rays, facets
 

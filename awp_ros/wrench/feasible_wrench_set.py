@@ -16,8 +16,8 @@ coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``r``, wh
 ``M_k = U^T L_k``):
 
 (2)-(3) the facet normals, by face combinations of the legs
-    (:func:`awp_ros.geometry.minkowski_facets.facet_normals`): each is a generalised cross product of
-    ``r - 1`` lifted face directions whose normal cones agree;
+    (:func:`awp_ros.geometry.minkowski_facets.facet_normals`): each is a generalised cross product
+    of ``r - 1`` lifted face directions whose normal cones agree;
 (4) ``b = h_S(a)`` by (1) over all the given points, so each kept row is an exact supporting
     halfspace whatever the tolerances (and whatever the face search found); rows are
     deduplicated after rounding.
@@ -44,6 +44,7 @@ from awp_ros.wrench.wrench_polytope import lift_matrices
 
 # lift_matrices and lp_directional_margins are re-exported from their modules.
 __all__ = ['feasible_wrench_set', 'minkowski_sum_of_lifts']
+
 
 def feasible_wrench_set(positions: np.ndarray, friction_polytopes: Sequence[Polytope],
                         **tolerances: float) -> Polytope:

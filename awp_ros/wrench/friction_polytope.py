@@ -258,8 +258,10 @@ _IMPLIED_TOL = 1e-12  # min (-a_i . n) of the pyramid facets for n . f >= 0 to b
 @lru_cache(maxsize=16)
 def _triple_tables(m: int, half: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
-    Return the row triples ``(3, T)``, the flat indices ``(3, T)`` of the pairs (j, l),
-    (l, i), (i, j) into an (m, m) table, and the bit weights 2^p of the rows (as floats).
+    Return the row triples, their pair indices and the row bit weights.
+
+    The row triples ``(3, T)``, the flat indices ``(3, T)`` of the pairs (j, k), (k, i), (i, j)
+    into an (m, m) table, and the bit weights 2^p of the rows (as floats).
 
     With ``half > 0`` the triples holding rows p and p + half (p < half) are left out.
     """
@@ -270,6 +272,6 @@ def _triple_tables(m: int, half: int = 0) -> tuple[np.ndarray, np.ndarray, np.nd
         clash = opposite[tri[:, 0], tri[:, 1]] | opposite[tri[:, 0], tri[:, 2]] \
             | opposite[tri[:, 1], tri[:, 2]]
         tri = tri[~clash]
-    i, j, l = tri[:, 0], tri[:, 1], tri[:, 2]
-    pairs = np.stack([j * m + l, l * m + i, i * m + j])
+    i, j, k = tri[:, 0], tri[:, 1], tri[:, 2]
+    pairs = np.stack([j * m + k, k * m + i, i * m + j])
     return np.ascontiguousarray(tri.T), pairs, 2.0 ** np.arange(m)

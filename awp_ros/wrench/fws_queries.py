@@ -41,8 +41,8 @@ def lp_directional_margins(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
     One LP in the barycentric weights ``lam_k >= 0`` (``sum_k L_k V_k^T lam_k - t_i e_i = w``,
     ``1^T lam_k = 1``) solved 13 times with warm starts (primal simplex, HiGHS): ``t = 0``
     for membership, then ``max`` and ``min`` of each ``t_i``. Same conventions as
-    :func:`awp_ros.geometry.margin.directional_margins` (``t^+ = t_0, t^- = -t_0`` when the line meets
-    a flat S in one point; NaN when it misses S). HiGHS is taken from the copy bundled in
+    :func:`awp_ros.geometry.margin.directional_margins` (``t^+ = t_0, t^- = -t_0`` when the line
+    meets a flat S in one point; NaN when it misses S). HiGHS is taken from the copy bundled in
     scipy (measured faster per solve than ``highspy``'s), else from ``highspy``; without
     either, scipy's ``linprog``.
 
@@ -128,7 +128,7 @@ class _HighsLp:
         return float(value) if ok else None
 
     def _linprog(self, i: int | None, cost: float) -> float | None:
-        """The same LP with scipy.optimize.linprog (no warm start)."""
+        """Solve the same LP with scipy.optimize.linprog (no warm start)."""
         from scipy.optimize import linprog
         cols = self.A.shape[1]
         c = np.zeros(cols)

@@ -19,10 +19,10 @@ Equations (seed eqs. 1-3 and its Sec. on the FWP):
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import linprog
 
 from awp_ros.errors import InputError
 from awp_ros.geometry.linalg import cross3
+from awp_ros.geometry.lp import chebyshev_ball
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.geometry.zonotope import zonotope
 
@@ -149,7 +149,8 @@ def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 
     center_test = same and awp.meta.get('kind') == 'zonotope'
     if not ((center_test and _strictly_inside(A2, b2, awp.hull_origin, interior_tol))
             or (same and _strictly_inside(A1, b1, np.zeros(n), interior_tol))):
-        radius = _chebyshev_radius(A @ U, b - A @ origin)
+        ball = chebyshev_ball(A @ U, b - A @ origin, max_radius=1.0)
+        radius = None if ball is None else ball[1]
         if radius is None or radius < -interior_tol:
             return Polytope.empty(n)
         meta['degenerate'] = radius <= interior_tol
@@ -236,22 +237,3 @@ def _restrict(P: Polytope, origin: np.ndarray, U: np.ndarray,
 def _strictly_inside(A: np.ndarray, b: np.ndarray, x: np.ndarray, tol: float) -> bool:
     """Return True when ``x`` satisfies every row with slack above ``tol``."""
     return bool(A.shape[0] == 0 or np.min(b - A @ x) > tol)
-
-
-def _chebyshev_radius(A_r: np.ndarray, b_r: np.ndarray) -> float | None:
-    """
-    Return the largest inscribed-ball radius of ``{y : A_r y <= b_r}`` (may be < 0).
-
-    Rows are normalised in hull coordinates; the radius is capped at 1 (only its sign and
-    smallness matter). None when the LP fails.
-    """
-    norms = np.linalg.norm(A_r, axis=1)
-    r = A_r.shape[1]
-    c = np.zeros(r + 1)
-    c[-1] = -1.0
-    A_ub = np.hstack([A_r, norms[:, None]])
-    bounds = [(None, None)] * r + [(None, 1.0)]
-    res = linprog(c, A_ub=A_ub, b_ub=b_r, bounds=bounds, method='highs')
-    if res.status != 0:
-        return None
-    return float(res.x[-1])

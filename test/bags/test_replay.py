@@ -16,13 +16,14 @@ import pytest
 from awp_ros.bags.message_types import typestore
 from awp_ros.bags.progress import Progress
 from awp_ros.bags.reader import BagMessage, TopicInfo
-from awp_ros.bags.replay import load_parameters, make_pipeline, replay_bag
+from awp_ros.bags.replay import replay_bag
 from awp_ros.bags.summary import summarize_reports
 from awp_ros.bags.writer import BagWriter
 from awp_ros.cli.replay import main as replay_main, parse_override
 from awp_ros.gait.bag import write_gait_bag
 from awp_ros.gait.generator import GaitParams, generate_gait
-from awp_ros.robot.config import load_config
+from awp_ros.robot.config import load_config, load_parameters
+from awp_ros.ros.pipeline import Pipeline
 
 BIN = Path(sys.executable).parent
 REPORT = '/awp_node/report'
@@ -30,7 +31,7 @@ REPORT = '/awp_node/report'
 
 @pytest.fixture(scope='module')
 def gait_bag(tmp_path_factory):
-    """A 1.6 s bag: stand, two trot cycles (2-leg phases, roll in the imu), stand."""
+    """Return a 1.6 s bag: stand, two trot cycles (2-leg phases, roll in the imu), stand."""
     gait = generate_gait(load_config('hyq'), GaitParams(
         sequence=('trot',), trot_cycles=2, stand_s=0.2, trot_ramp_s=0.3))
     path = tmp_path_factory.mktemp('bags') / 'trot.mcap'
@@ -41,13 +42,14 @@ def gait_bag(tmp_path_factory):
 @pytest.fixture(scope='module')
 def replayed(gait_bag, tmp_path_factory):
     out = tmp_path_factory.mktemp('out') / 'replayed.mcap'
-    pipeline = make_pipeline(load_parameters(overrides={'use_imu': True}))
+    params, base_dir = load_parameters('hyq', {'use_imu': True})
+    pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
     summary = replay_bag(gait_bag, out, pipeline=pipeline, progress=False)
     return out, summary
 
 
 def _read(path, topics=None):
-    """topic -> [(log time, message)] with rosbags' own reader and deserialiser."""
+    """Return topic -> [(log time, message)], read with rosbags' own reader and deserialiser."""
     from rosbags.highlevel import AnyReader
 
     out: dict = {}
@@ -189,7 +191,7 @@ def test_parse_override_reads_values_as_yaml():
 
 
 def _foreign_bag(path: Path, topic: str) -> Path:
-    """A bag whose ``topic`` carries ``my_pkg/msg/Thing`` (defined in the bag only)."""
+    """Write a bag whose ``topic`` carries ``my_pkg/msg/Thing`` (defined in the bag only)."""
     info = TopicInfo('my_pkg/msg/Thing', 0, 'int32 a\n', 'RIHS01_' + '1' * 64)
     with BagWriter(path, definitions={topic: info}) as writer:
         writer.write(BagMessage(topic, 'my_pkg/msg/Thing', 1, b'\x00\x01\x00\x00\x07\x00\x00\x00'))
@@ -224,7 +226,7 @@ def test_play_refuses_unknown_message_types(tmp_path, ros_env):
 
 # -- live ---------------------------------------------------------------------------------------
 
-_RECORDER = textwrap.dedent('''
+_RECORDER = textwrap.dedent("""
     import json, sys, time
     import rclpy
     from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -252,7 +254,7 @@ _RECORDER = textwrap.dedent('''
                           'fwp_res': r.fwp_affine_residual}))
     node.destroy_node()
     rclpy.shutdown()
-''')
+""")
 
 
 def _stop(proc) -> None:
@@ -266,7 +268,7 @@ def _stop(proc) -> None:
 
 
 def test_play_into_a_running_node_gives_the_offline_reports(replayed, gait_bag, tmp_path,
-                                                             ros_env, repo):
+                                                            ros_env, repo):
     """awp_node (console script) + awp_replay --play + a recorder: three processes."""
     out, summary = replayed
     offline = {_ns(r.header.stamp): r for _, r in _read(out, [REPORT])[REPORT]}

@@ -35,8 +35,8 @@ def run_main(monkeypatch, capsys, doc, *args):
 
 def test_subprocess_standing_state_from_stdin_matches_the_library():
     proc = run_module('awp_ros.cli.eval', ['--no-halfspaces'],
-                      stdin=json.dumps({'posture': 'standing', 'stance': ['lf_foot', 'rf_foot',
-                                                                         'lh_foot']}))
+                      stdin=json.dumps({'posture': 'standing',
+                                        'stance': ['lf_foot', 'rf_foot', 'lh_foot']}))
     assert proc.returncode == 0, proc.stderr
     d = json.loads(proc.stdout)
     ev = FeasibilityEvaluator('hyq')

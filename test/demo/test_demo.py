@@ -39,8 +39,8 @@ def test_table_rows_show_time_stance_margin_and_feasibility():
     assert row.split() == ['1.50', 'LF', 'RF', '--', 'RH', '41.80', 'yes', '0.00', 'yes']
     row = format_row(_report(5600, ['rf_foot', 'lh_foot'], 184.0, residual=26.1), FEET,
                      100 * 10**9)
-    assert row.split()[1:5] == ['--', 'RF', 'LH', '--'] and row.split()[6:] == ['no', '26.10',
-                                                                               'no']
+    assert row.split()[1:5] == ['--', 'RF', 'LH', '--']
+    assert row.split()[6:] == ['no', '26.10', 'no']
     row = format_row(_report(0, [], 0.0, status=3), FEET, 100 * 10**9)
     assert 'not evaluated: no contacts message received yet' in row
 

@@ -1,4 +1,4 @@
-"""Tests of awp_ros.evaluation.evaluator: the whole pipeline against hand results, LPs and Pinocchio."""
+"""Tests of awp_ros.evaluation.evaluator: the pipeline against hand results, LPs and Pinocchio."""
 
 from __future__ import annotations
 
@@ -332,7 +332,7 @@ def test_base_acceleration_and_orientation_enter_the_wrench(toy):
     ({'stance': 'a_foot'}, 'stance must be a list'),
     ({'normals': {'a_foot': [0.0, 0.0, 0.0]}}, "normals\\['a_foot'\\] is the zero vector"),
     ({'normals': {'a_foot': [0.0, 1.0]}}, "normals\\['a_foot'\\] must be a list of 3"),
-    ({'normals': {'c_foot': [0.0, 0.0, 1.0]}}, "normals names unknown feet"),
+    ({'normals': {'c_foot': [0.0, 0.0, 1.0]}}, 'normals names unknown feet'),
     ({'friction_coefficient': 0.0}, 'friction_coefficient must be > 0'),
     ({'friction_coefficients': {'b_foot': -1.0}},
      r"friction_coefficients\['b_foot'\] must be > 0"),

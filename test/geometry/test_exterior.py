@@ -1,4 +1,4 @@
-"""Tests of awp_ros.geometry.exterior against determinants (numpy.linalg.det) and cross products."""
+"""Tests of awp_ros.geometry.exterior against determinants (numpy.linalg.det), cross products."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Tests of awp_ros.geometry.face_lattice against hand cases, qhull and the normal-cone definition."""
+"""Tests of awp_ros.geometry.face_lattice against hand cases, qhull and normal-cone definition."""
 
 from __future__ import annotations
 
@@ -66,7 +66,7 @@ def test_random_polytope_facets_match_qhull(seed):
 
 @pytest.mark.parametrize('seed', range(4))
 def test_edge_checks_are_the_normal_cone(seed):
-    """c perpendicular to an edge passes its checks iff c is maximised on a parallel edge."""
+    """Any c perpendicular to an edge passes its checks iff c is maximised on a parallel edge."""
     rng = np.random.default_rng(seed)
     V = rng.normal(size=(12, 3)) * [300.0, 200.0, 800.0]
     F = polytope_faces(V)

@@ -1,4 +1,4 @@
-"""Tests of awp_ros.geometry.zonotope (and the linalg kernels it uses) against qhull and brute force."""
+"""Tests of awp_ros.geometry.zonotope (and its linalg kernels) against qhull and brute force."""
 
 from __future__ import annotations
 

@@ -32,7 +32,8 @@ def test_colcon_builds_both_packages(repo, tmp_path, ros_env):
     assert 'Summary: 2 packages finished' in result.stdout
     for exe in ('awp_node', 'awp_replay', 'awp_eval', 'awp_bench'):
         assert (ws / 'install/awp_ros/lib/awp_ros' / exe).is_file(), exe
-    generated = list((ws / 'install/awp_ros_msgs').rglob('awp_ros_msgs/msg/_feasibility_report.py'))
+    generated = list((ws / 'install/awp_ros_msgs').rglob(
+        'awp_ros_msgs/msg/_feasibility_report.py'))
     assert generated, 'generated Python message module missing'
     assert list((ws / 'install/awp_ros/share/awp_ros/config').glob('*.yaml')) or \
         not list((repo / 'config').glob('*.yaml'))

@@ -109,7 +109,7 @@ def _inputs_status(probe: Probe, diag: list, start: int, predicate, what: str,
 
 
 def test_node_started_before_its_inputs_waits_then_answers_each(nodes, probe, ros_env,
-                                                                 tmp_path):
+                                                                tmp_path):
     proc = nodes('hyq')
     reports = probe.subscribe(FeasibilityReport, 'awp_node/report', depth=10000)
     diag = probe.subscribe(DiagnosticArray, '/diagnostics', depth=1000)

@@ -32,10 +32,11 @@ from sensor_msgs.msg import JointState
 from visualization_msgs.msg import Marker, MarkerArray
 
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+from awp_ros.node.launcher import start_node, stop_node
+from awp_ros.robot.config import find_parameters_file
 from awp_ros.robot.state import RobotState
 from awp_ros.ros.conversions import polytope_from_msg, stamp_to_ns
 
-AWP_NODE = Path(sys.executable).parent / 'awp_node'
 AWP_EVAL = Path(sys.executable).parent / 'awp_eval'
 FEET = ['lf_foot', 'rf_foot', 'lh_foot', 'rh_foot']
 QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=20000,
@@ -110,10 +111,8 @@ def run_node(ros_env, monkeypatch):
     started = []
 
     def start(outputs: dict, *args: str, robot: str = 'hyq') -> Peer:
-        cmd = [str(AWP_NODE), '--ros-args', '--params-file',
-               str(Path(__file__).resolve().parents[2] / 'config' / f'{robot}.yaml'), *args]
-        proc = subprocess.Popen(cmd, env=ros_env, stdout=subprocess.PIPE,
-                                stderr=subprocess.STDOUT, text=True)
+        proc = start_node(env=ros_env, robot=None, params_file=find_parameters_file(robot),
+                          ros_args=args)
         peer = Peer(ros_env, outputs)
         peer.proc = proc
         started.append((proc, peer))
@@ -123,12 +122,7 @@ def run_node(ros_env, monkeypatch):
     yield start
     for proc, peer in started:
         peer.close()
-        proc.send_signal(signal.SIGINT)
-        try:
-            out, _ = proc.communicate(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            out, _ = proc.communicate()
+        out = stop_node(proc)
         assert 'Traceback' not in out, out
 
 

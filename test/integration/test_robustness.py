@@ -53,7 +53,7 @@ CONTACTS_LEAD_S = 0.05
 
 
 def _domain() -> int:
-    """A domain of this module's own: 215..232 (safe ports; conftest uses 1..101)."""
+    """Return a domain of this module's own: 215..232 (safe ports; conftest uses 1..101)."""
     return 215 + random.Random(os.getpid() + 6).randrange(18)
 
 
@@ -222,7 +222,7 @@ CASES = [
          js=lambda ref: joints(ref, posture(ref, lf_haa_joint=math.nan))),
     Case('inf_position', INVALID, "joint_positions['rh_kfe_joint'] is not finite: inf",
          js=lambda ref: joints(ref, posture(ref, rh_kfe_joint=math.inf))),
-    Case('minus_inf_position', INVALID, "is not finite: -inf",
+    Case('minus_inf_position', INVALID, 'is not finite: -inf',
          js=lambda ref: joints(ref, posture(ref, lf_hfe_joint=-math.inf))),
     Case('nan_velocity', INVALID, "joint_velocities['lf_haa_joint'] is not finite: nan",
          js=lambda ref: joints(ref, velocity=[math.nan] + [0.0] * 11)),

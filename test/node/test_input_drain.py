@@ -18,7 +18,7 @@ QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=1000,
 
 @pytest.fixture
 def peers(ros_env):
-    """A publishing node and a subscribing node in two contexts (two DDS participants)."""
+    """Yield a publishing node and a subscribing node in two contexts (two DDS participants)."""
     contexts, nodes = [], []
     for name in ('drain_pub', 'drain_sub'):
         ctx = rclpy.Context()

@@ -11,6 +11,7 @@ from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.robot.model import resolve_urdf, RobotModel
 from cases import EFFORT, G, M_BASE, M_FOOT, toy_urdf
 
+
 def toy_config(**kw) -> RobotConfig:
     params = {'robot_name': 'toy', 'urdf': toy_urdf(), 'feet': ['a_foot', 'b_foot']}
     params.update(kw)

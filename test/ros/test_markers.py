@@ -13,9 +13,10 @@ from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+from awp_ros.geometry.linalg import quaternion_matrix
+from awp_ros.geometry.mesh import force_slice, hull_triangles
 from awp_ros.geometry.polytope import Polytope
-from awp_ros.ros.markers import (build_markers, error_markers, force_slice, hull_triangles,
-                                 MarkerStyle, quaternion_matrix)
+from awp_ros.ros.markers import build_markers, error_markers, MarkerStyle
 
 VALID_TYPES = set(range(12))
 
@@ -52,7 +53,7 @@ def test_flat_square_is_fanned_both_sides_and_segments_give_nothing():
 
 
 def _lp_support(P: Polytope, tau: np.ndarray, d: np.ndarray) -> float:
-    """max d.f s.t. A [f; tau] <= b and [f; tau] in aff P: an LP on the definition."""
+    """Return max d.f s.t. A [f; tau] <= b and [f; tau] in aff P: an LP on the definition."""
     E, e = P.equalities
     res = linprog(-d, A_ub=P.A[:, :3], b_ub=P.b - P.A[:, 3:] @ tau,
                   A_eq=E[:, :3] if E.size else None,

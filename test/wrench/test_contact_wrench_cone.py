@@ -31,7 +31,7 @@ def qhull_cone_facets(R: np.ndarray, basis: np.ndarray) -> np.ndarray:
 
 
 def lp_in_cone(R: np.ndarray, w: np.ndarray) -> bool:
-    """w = R^T lam, lam >= 0 (LP feasibility on the definition)."""
+    """Return whether w = R^T lam, lam >= 0 (LP feasibility on the definition)."""
     res = linprog(np.zeros(R.shape[0]), A_eq=R.T, b_eq=w, bounds=(0, None), method='highs')
     return res.status == 0
 

@@ -26,8 +26,9 @@ from cases import hyq_feet, hyq_like_leg, vertex_sums
 
 # -- independent references ------------------------------------------------------------------
 
+
 def hrep_support(S: Polytope, a: np.ndarray) -> float:
-    """max a.x over the H-rep's polytope (LP, within the affine hull)."""
+    """Return max a.x over the H-rep's polytope (LP, within the affine hull)."""
     U, o = S.hull_basis, S.hull_origin
     res = linprog(-(U.T @ a), A_ub=S.A @ U, b_ub=S.b - S.A @ o, bounds=(None, None),
                   method='highs')
@@ -36,7 +37,7 @@ def hrep_support(S: Polytope, a: np.ndarray) -> float:
 
 
 def lp_member(positions, vertex_sets, w) -> bool:
-    """w = sum_k L_k V_k^T lam_k with lam_k in simplices (the definition), by linprog."""
+    """Return whether w = sum_k L_k V_k^T lam_k, lam_k in simplices (linprog on the definition)."""
     L = lift_matrices(positions)
     cols = [Lk @ V.T for Lk, V in zip(L, vertex_sets)]
     n = sum(c.shape[1] for c in cols)
@@ -231,7 +232,7 @@ def test_checkers_detect_a_missing_facet(four_legs):
 
 
 def test_four_legs_directional_margins_match_linprog(four_legs):
-    """max t with w + t e_i in S, by linprog on the definition, equals the H-rep ratio test."""
+    """Max t with w + t e_i in S, by linprog on the definition, equals the H-rep ratio test."""
     p, vertex_sets, S = four_legs
     L = lift_matrices(p)
     cols = np.hstack([Lk @ V.T for Lk, V in zip(L, vertex_sets)])
@@ -257,9 +258,10 @@ def test_four_legs_directional_margins_match_linprog(four_legs):
 
 def test_tiny_leg_facet_regression():
     """
-    Seed 65: a leg with a 0.01 N facet (lost once by the face search, which then gave rows
+    Seed 65, a leg with a 0.01 N facet: every row supports the sums, supports near rows agree.
 
-    cutting S by 600 N): every row supports the sums, supports near the rows agree."""
+    The face search once lost that facet, and then gave rows cutting S by 600 N.
+    """
     rng = np.random.default_rng(65)
     vertex_sets = [hyq_like_leg(rng) for _ in range(4)]
     p = hyq_feet(rng, 4)
@@ -346,9 +348,12 @@ def test_segment_point_and_flat_legs_in_hull_coordinates():
 @pytest.mark.parametrize('seed', [0, 44, 139])
 def test_nearly_flat_thin_and_clustered_legs(seed):
     """
-    Legs flat to 1e-12..1e-4, nearly segments, or with 1e-3 N clusters: the supports of
-    the H-rep's polytope along random and near-facet directions stay within 1e-6 (relative)
-    of the true ones (seeds that once overshot by 1e-2 or gave an unbounded H-rep)."""
+    Nearly flat, thin and clustered legs: the H-rep's supports stay close to the true ones.
+
+    Legs flat to 1e-12..1e-4, nearly segments, or with 1e-3 N clusters: the supports of the
+    H-rep's polytope along random and near-facet directions stay within 1e-6 (relative) of the
+    true ones (seeds that once overshot by 1e-2 or gave an unbounded H-rep).
+    """
     rng = np.random.default_rng(seed)
     K = int(rng.integers(2, 4))
     vertex_sets = []

@@ -3,7 +3,8 @@ Tests of awp_ros.wrench.fws_queries: LP membership and directional margins of th
 
 Checked against an independent method, the exact H-rep of the same Minkowski sum
 (:func:`awp_ros.wrench.feasible_wrench_set.minkowski_sum_of_lifts`) with the ratio test of
-:func:`awp_ros.geometry.margin.directional_margins`, and against scipy's ``linprog`` (no warm start).
+:func:`awp_ros.geometry.margin.directional_margins`, and against scipy's ``linprog`` (no warm
+start).
 """
 
 from __future__ import annotations
@@ -26,9 +27,10 @@ def test_reexported_from_feasible_wrench_set():
 @pytest.mark.parametrize('K', [1, 2, 3, 4])
 def test_lp_directional_margins_match_the_hrep(K):
     """
-    Warm-started LPs and the H-rep ratio test (two independent methods) agree, flat sets
+    Warm-started LPs and the H-rep ratio test (two independent methods) agree.
 
-    included (a transversal axis meets the hull in one point or misses it: NaN)."""
+    Flat sets included (a transversal axis meets the hull in one point or misses it: NaN).
+    """
     rng = np.random.default_rng(20 + K)
     vertex_sets = [hyq_like_leg(rng) for _ in range(K)]
     p = hyq_feet(rng, K)

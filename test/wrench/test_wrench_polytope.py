@@ -1,4 +1,4 @@
-"""Tests of awp_ros.wrench.wrench_polytope: the AWP against qhull and by hand, the FWP against LPs."""
+"""Tests of awp_ros.wrench.wrench_polytope: AWP against qhull and by hand, FWP against LPs."""
 
 from __future__ import annotations
 
@@ -24,7 +24,11 @@ WEIGHT = np.array([0.0, 0.0, 85.0 * 9.81, 0.0, 0.0, 0.0])
 
 
 def leg_jacobian(q: np.ndarray, sign: float) -> np.ndarray:
-    """Translational Jacobian [m/rad] of a HyQ-like leg (HAA about x, HFE and KFE about y)."""
+    """
+    Return the translational Jacobian [m/rad] of a HyQ-like leg.
+
+    HAA about x, HFE and KFE about y.
+    """
     def fk(q):
         c0, s0 = np.cos(q[0]), np.sin(q[0])
         rx = np.array([[1, 0, 0], [0, c0, -s0], [0, s0, c0]])
@@ -61,7 +65,7 @@ def vertex_sums(P, C, H) -> np.ndarray:
 
 
 def lp_in_awp(P, C, H, w) -> bool:
-    """w = sum_k L_k (c_k + H_k t_k), |t| <= 1 (LP on the definition)."""
+    """Return whether w = sum_k L_k (c_k + H_k t_k), |t| <= 1 (LP on the definition)."""
     K = P.shape[0]
     G = np.hstack([lift(P[k]) @ H[k] for k in range(K)])
     c = sum(lift(P[k]) @ C[k] for k in range(K))
@@ -77,7 +81,7 @@ def lp_in_cwc(P, w, normals=UP, mu=MU) -> bool:
 
 
 def lp_fwp_support(P, C, H, a, normals=UP, mu=MU) -> float:
-    """max a.w over AWP cap CWC (LP over both definitions at once)."""
+    """Return max a.w over AWP cap CWC (LP over both definitions at once)."""
     K = P.shape[0]
     G = np.hstack([lift(P[k]) @ H[k] for k in range(K)])
     c = sum(lift(P[k]) @ C[k] for k in range(K))
