@@ -66,7 +66,6 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, JointState
-from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
 from awp_ros.errors import AwpError
@@ -74,15 +73,15 @@ from awp_ros.node.diagnostics import NodeDiagnostics
 from awp_ros.node.input_drain import InputDrain
 from awp_ros.node.marker_worker import MarkerWorker
 from awp_ros.node.parameters import NodeParameters
-from awp_ros.ros.conversions import error_report, stamp_to_ns
-from awp_ros.ros.pipeline import Pipeline
+from awp_ros.ros.conversions import stamp_to_ns
+from awp_ros.ros.pipeline import loss_note, Pipeline, unevaluated_report
 from awp_ros.ros.pipeline_params import PipelineParams
 from awp_ros.runtime import freeze_startup_objects, keep_freed_memory, limit_blas_threads
 
 __all__ = ['AwpNode', 'main']
 
 
-class AwpNode(NodeParameters, Node):
+class AwpNode(Node):
     """
     The rclpy node: parameters, QoS, subscriptions, publishers, timers (module docstring).
 
@@ -92,43 +91,72 @@ class AwpNode(NodeParameters, Node):
 
     def __init__(self, node_name: str = 'awp_node', **kwargs) -> None:
         super().__init__(node_name, **kwargs)
-        self.config_errors: list[str] = []
-        self._declare_all()
-        blas_threads = self.get_parameter('blas_threads').value
+        self.pipeline: Pipeline | None = None
+        self.parameters = NodeParameters(
+            self, self._apply_parameters,
+            lambda: None if self.pipeline is None else self.pipeline.root_link)
+        blas_threads = self.parameters.value('blas_threads')
         self._blas = limit_blas_threads(blas_threads)
         if self._blas is None and blas_threads > 0:
             self.get_logger().warning('threadpoolctl is not installed; BLAS threads not limited')
         keep_freed_memory()
-        self.pipeline: Pipeline | None = None
-        self.model_error = ''
-        self._limits_declared = False
-        self.max_queue_delay_s = float(self.get_parameter('max_queue_delay_s').value)
-        self._declare_robot_parameters()
-        try:
-            self.pipeline = Pipeline(self._robot_config(), self._pipeline_params(),
-                                     input_buffer=self.get_parameter('qos_depth').value)
-            self._declare_torque_limits()
-        except (AwpError, ValueError) as exc:
-            self.model_error = f'no robot model: {exc}'
+        self.model_error = self.parameters.base_error
+        p = self.parameters.pipeline_params()
+        if not self.model_error:
+            try:
+                self.pipeline = Pipeline(self.parameters.robot_config(), p,
+                                         input_buffer=self.parameters.value('qos_depth'))
+                self.parameters.declare_torque_limits(self.pipeline.evaluator.model)
+            except (AwpError, ValueError) as exc:
+                self.model_error = f'no robot model: {exc}'
+        if self.model_error:
             self.get_logger().error(f'{self.model_error}; answering every joint state with '
                                     'STATUS_ERROR until a corrected robot_description (or '
                                     'robot key) is set')
-        p = self._pipeline_params()
         name = self.pipeline.config.robot_name if self.pipeline else 'unknown'
         topics = ['joint_states', 'contacts'] + (['imu'] if p.use_imu else [])
         self.diagnostics = NodeDiagnostics(self.get_fully_qualified_name().lstrip('/'), name,
                                            topics, stale_timeout_s=p.stale_timeout_s)
         self.diagnostics.model_error = self.model_error
-        self.diagnostics.config_errors = self.config_errors
+        self.diagnostics.config_errors = self.parameters.config_errors
         self._wall = Clock(clock_type=ClockType.SYSTEM_TIME)
+        self._limits_declared = self.pipeline is not None
         self._create_interfaces(p)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._log_startup(p)
+
+    def _log_startup(self, p: PipelineParams) -> None:
+        """Log one line: robot, feet, topics, rates."""
+        if self.pipeline is None:
+            return
+        c = self.pipeline.config
+        inputs = [s.topic_name for s in self.subscriptions_]
+        self.get_logger().info(
+            f'robot {c.robot_name!r}, feet {list(c.feet)}; inputs {inputs}; outputs '
+            f'{self.pub_report.topic_name} (every joint state), FWS '
+            f'{"every cycle" if p.fws_rate_hz == 0 else f"{p.fws_rate_hz:g} Hz"}, markers '
+            f'{"off" if p.marker_rate_hz == 0 else f"{p.marker_rate_hz:g} Hz"}')
+
+    def _apply_parameters(self, evaluator, params: PipelineParams) -> None:
+        """Apply an accepted parameter change (post-set): a new model and/or parameters."""
+        if evaluator is not None and self.pipeline is None:
+            self.pipeline = Pipeline(evaluator, params,
+                                     input_buffer=self.parameters.value('qos_depth'))
+            self.model_error = self.diagnostics.model_error = ''
+            self.diagnostics.hardware_id = self.pipeline.config.robot_name
+            self.get_logger().info(f'robot model {self.pipeline.config.robot_name!r} '
+                                   'built; evaluating joint states')
+        elif self.pipeline is not None:
+            if evaluator is not None:
+                self.pipeline.set_config(evaluator)
+            self.pipeline.set_params(params)
+        self.diagnostics.stale_timeout_s = params.stale_timeout_s
+        self._limits_declared = False   # declared on the next joint state (not in a callback)
 
     # -- interfaces ------------------------------------------------------------------------
 
     def _create_interfaces(self, p: PipelineParams) -> None:
-        depth = self.get_parameter('qos_depth').value
-        rel = self.checked_choice('qos_reliability', ('reliable', 'best_effort'))
+        depth = self.parameters.value('qos_depth')
+        rel = self.parameters.choice('qos_reliability', ('reliable', 'best_effort'))
         reliability = ReliabilityPolicy.RELIABLE if rel == 'reliable' \
             else ReliabilityPolicy.BEST_EFFORT
         qos_in = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
@@ -153,7 +181,7 @@ class AwpNode(NodeParameters, Node):
         # The message info (publication sequence number, reception time) drives the loss
         # count and the load shedding; rclpy's EventsExecutor cannot pass it (its callbacks
         # take the message only), so with it both are off.
-        with_info = self.get_parameter('executor').value != 'events'
+        with_info = self.parameters.value('executor') != 'events'
         for topic, mtype, callback in subs:
             if not with_info:
                 callback = (lambda msg, f=callback: f(msg, {}))  # noqa: E731
@@ -169,11 +197,11 @@ class AwpNode(NodeParameters, Node):
         handlers = [self._on_contacts] + ([self._on_imu] if p.use_imu else [])
         self.drain = InputDrain(list(zip(self.subscriptions_[:-1], handlers)),
                                 (self.subscriptions_[-1], self._handle_joint_state),
-                                self.context, budget_s=self.get_parameter('drain_budget_s').value)
+                                self.context, budget_s=self.parameters.value('drain_budget_s'))
         self.marker_worker = None
-        if self.get_parameter('marker_worker').value and p.marker_rate_hz > 0.0:
+        if self.parameters.value('marker_worker') and p.marker_rate_hz > 0.0:
             self.marker_worker = MarkerWorker(self.pub_markers.publish, self._output_error)
-        period = self.get_parameter('diagnostics_period_s').value
+        period = self.parameters.value('diagnostics_period_s')
         self.diag_timer = self.create_timer(period if period > 0 else 1.0,
                                             self._publish_diagnostics,
                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -201,23 +229,17 @@ class AwpNode(NodeParameters, Node):
         self.diagnostics.received('joint_states', time.monotonic())
         missing = self.diagnostics.sequence('joint_states',
                                             info.get('publication_sequence_number'))
-        notes = [f'{missing} joint states published before this one never arrived (a full '
-                 'input queue: the node fell qos_depth behind; or a lossy link); they got no '
-                 'report'] if missing else []
-        delay = _queue_delay(info)
         if self.pipeline is None:
-            self._answer_unevaluated(msg, FeasibilityReport.STATUS_ERROR,
-                                     '; '.join(notes + [self.model_error]))
+            reason = '; '.join(([loss_note(missing)] if missing else []) + [self.model_error])
+            frame = self.parameters.value('wrench_frame_id')
+            self._publish_report(msg, unevaluated_report(msg, frame, FeasibilityReport.
+                                                         STATUS_ERROR, reason))
             return
-        if 0.0 < self.max_queue_delay_s < delay:
-            self._answer_unevaluated(msg, FeasibilityReport.STATUS_STALE_INPUT, '; '.join(
-                notes + [f'not evaluated: the joint state waited {delay:.3f} s in the input '
-                         f'queue (max_queue_delay_s {self.max_queue_delay_s:g}); the node is '
-                         'overloaded and sheds load']))
-            return
-        if not self._limits_declared:           # the model was built at runtime
-            self._declare_torque_limits()
-        cycle = self.pipeline.on_joint_state(msg, notes)
+        if not self._limits_declared:           # a model built or changed at runtime
+            self.parameters.declare_torque_limits(self.pipeline.evaluator.model)
+            self._limits_declared = True
+        cycle = self.pipeline.on_joint_state(msg, missing=missing or 0,
+                                             queue_delay_s=_queue_delay(info))
         report = cycle.report
         self.pub_report.publish(report)
         if cycle.result is not None:
@@ -261,15 +283,11 @@ class AwpNode(NodeParameters, Node):
         self.drain.close()
         super().destroy_node()
 
-    def _answer_unevaluated(self, msg: JointState, status: int, reason: str) -> None:
-        """Publish the report of a joint state that is not evaluated (fast path)."""
-        t0 = time.perf_counter()
-        frame = self.pipeline.params.wrench_frame_id if self.pipeline is not None \
-            else self.get_parameter('wrench_frame_id').value
-        report = error_report(Header(stamp=msg.header.stamp, frame_id=frame), status, reason)
-        report.compute_time = time.perf_counter() - t0
+    def _publish_report(self, msg: JointState, report: FeasibilityReport) -> None:
+        """Publish the report of a joint state that is not evaluated, and count it."""
         self.pub_report.publish(report)
-        self.diagnostics.evaluated(status, report.compute_time, self._latency(msg), reason)
+        self.diagnostics.evaluated(report.status, report.compute_time, self._latency(msg),
+                                   report.status_message)
 
     def _latency(self, msg: JointState) -> float | None:
         """Return wall time now minus the joint-state stamp [s], None when not plausible."""
@@ -318,7 +336,7 @@ def main(args=None) -> int:
     node = None
     try:
         node = AwpNode()
-        kind = node.checked_choice('executor', ('single_threaded', 'events'))
+        kind = node.parameters.choice('executor', ('single_threaded', 'events'))
         if kind == 'events':
             from rclpy.experimental import EventsExecutor
             executor = EventsExecutor()

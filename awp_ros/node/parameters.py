@@ -1,28 +1,33 @@
 """
-The parameters of ``awp_node``: declaration with descriptors, validation, conversion.
+The parameters of ``awp_node``: declaration with descriptors, validation, application.
 
-:class:`NodeParameters` is mixed into :class:`awp_ros.node.node.AwpNode`: it declares the node
-parameters (:data:`NODE_PARAMETER_DOCS`), the pipeline parameters
-(:data:`awp_ros.ros.pipeline.PARAMETER_DOCS`) and the robot config keys
+:class:`NodeParameters` is a part of :class:`awp_ros.node.node.AwpNode`, as rclpy's parameter
+examples do it: it declares the node parameters (:data:`NODE_PARAMETER_DOCS`), the pipeline
+parameters (:data:`awp_ros.ros.pipeline_params.PARAMETER_DOCS`) and the robot config keys
 (:data:`ROBOT_PARAMETER_DOCS`, :data:`ROBOT_PREFIXES`), replacing a bad startup value by its
-default (logged and listed in ``config_errors``), and builds the
-:class:`~awp_ros.robot.config.RobotConfig` and :class:`~awp_ros.ros.pipeline.PipelineParams` the
-pipeline runs with.
+default (logged and listed in :attr:`NodeParameters.config_errors`); a change at runtime is
+validated in the on-set callback (the robot model is rebuilt there, a few ms, and the result
+kept) and applied in the post-set callback, which hands the new
+:class:`~awp_ros.robot.config.RobotConfig` model and
+:class:`~awp_ros.ros.pipeline_params.PipelineParams` to the node's ``apply`` function.
 """
 
 from __future__ import annotations
 
 from array import array
+from collections.abc import Callable
 from dataclasses import fields, replace
 
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 SetParametersResult)
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from awp_ros.errors import AwpError, ConfigError
+from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.robot.config import load_config, RobotConfig
-from awp_ros.ros.pipeline import Pipeline
+from awp_ros.ros.pipeline import check_marker_frame
 from awp_ros.ros.pipeline_params import PARAMETER_DOCS, PipelineParams
 
 __all__ = ['limit_value', 'NODE_PARAMETER_DOCS', 'NodeParameters',
@@ -64,11 +69,6 @@ NODE_PARAMETER_DOCS = {
                        'straight from the input queues (and waits for them) for up to this '
                        'long before returning to the rclpy executor (timers, parameter '
                        'services): ~0.2 ms less per message [s]; 0 = only those queued', True),
-    'max_queue_delay_s': (_T.DOUBLE, 0.0, 'load shedding: a joint state that waited longer '
-                          'than this in the input queue (the node is slower than its input) '
-                          'is answered at once with a STATUS_STALE_INPUT report instead of '
-                          'being evaluated, so latency stays bounded and the queue never '
-                          'overflows [s]; 0 = evaluate every joint state however late', False),
     'marker_worker': (_T.BOOL, True, 'build the markers in a worker process (off the '
                       'joint-state loop; ~3 ms each); a marker due while two wait for the '
                       'worker is skipped and counted in /diagnostics; false = in the node',
@@ -82,23 +82,56 @@ _FIELDS = {f.name: f for f in fields(PipelineParams)}
 
 class NodeParameters:
     """
-    The parameter methods of :class:`awp_ros.node.node.AwpNode` (a mixin of an rclpy Node).
+    Declare, validate (on-set) and apply (post-set) the parameters of an ``awp_node``.
 
-    Uses the node's ``config_errors`` (list of startup problems), ``model_error``,
-    ``pipeline``, ``diagnostics``, ``max_queue_delay_s`` and ``_limits_declared``; sets
-    ``_base`` (the base robot config).
+    :param node: the rclpy node the parameters belong to.
+    :param apply: called after an accepted change with ``(evaluator, params)``: the new
+        :class:`~awp_ros.evaluation.evaluator.FeasibilityEvaluator` (None when no robot key
+        changed) and the new :class:`~awp_ros.ros.pipeline_params.PipelineParams`.
+    :param root_link: returns the root link of the robot model in use, None without a
+        model (a change of a robot key then builds one).
+    :ivar config_errors: startup problems (bad values replaced by defaults, unknown keys).
+    :ivar base: the robot config the robot keys' defaults come from (``robot``), or None.
     """
 
-    def _declare_all(self) -> None:
-        """Declare the node and pipeline parameters (the robot keys come later)."""
+    def __init__(self, node: Node, apply: Callable,
+                 root_link: Callable[[], str | None]) -> None:
+        self._node = node
+        self._apply_fn = apply
+        self._root_link = root_link
+        self._pending: tuple | None = None
+        self._declaring = False
+        self.config_errors: list[str] = []
+        self.base: RobotConfig | None = None
+        self.base_error = ''
         for name, (ptype, default, text, ro) in NODE_PARAMETER_DOCS.items():
             self._declare(name, default, text, read_only=ro)
         for name, f in _FIELDS.items():
-            self._declare(name, f.default, PARAMETER_DOCS[name],
-                          read_only=name == 'use_imu')
+            self._declare(name, f.default, PARAMETER_DOCS[name], read_only=name == 'use_imu')
+        self._declare_robot_parameters()
+        node.add_on_set_parameters_callback(self._validate)
+        node.add_post_set_parameters_callback(self._apply)
+
+    def value(self, name: str):
+        """Return the value of parameter ``name``."""
+        return self._node.get_parameter(name).value
+
+    def choice(self, name: str, choices: tuple[str, ...]) -> str:
+        """Return parameter ``name`` if among ``choices``, else log, list and use the first."""
+        value = self.value(name)
+        if value in choices:
+            return value
+        reason = (f"{name} must be {' or '.join(repr(c) for c in choices)}, got {value!r}; "
+                  f'using {choices[0]!r}')
+        self._node.get_logger().error(reason)
+        self.config_errors.append(reason)
+        return choices[0]
+
+    # -- declaration -----------------------------------------------------------------------
 
     def _declare(self, name: str, default, text: str, *, read_only: bool = False,
                  dynamic: bool = False):
+        node = self._node
         desc = ParameterDescriptor(name=name, description=text, read_only=read_only,
                                    dynamic_typing=dynamic)
         if name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz', 'diagnostics_period_s',
@@ -107,7 +140,7 @@ class NodeParameters:
         if name == 'qos_depth':
             desc.integer_range = [IntegerRange(from_value=1, to_value=1_000_000)]
         try:
-            return self.declare_parameter(name, default, desc)
+            return node.declare_parameter(name, default, desc)
         except (InvalidParameterTypeException, InvalidParameterValueException) as first:
             error: Exception = first
             override = self._overrides()[name].value
@@ -116,37 +149,35 @@ class NodeParameters:
         if isinstance(default, float) and isinstance(override, int) \
                 and not isinstance(override, bool):
             try:
-                return self.declare_parameter(
-                    name, float(override), desc, ignore_override=True)
+                return node.declare_parameter(name, float(override), desc, ignore_override=True)
             except InvalidParameterValueException as second:
                 error = second
         reason = (f'parameter {name} = {override!r} rejected ({type(error).__name__}: '
                   f'{str(error).splitlines()[0]}); using the default {default!r}')
-        self.get_logger().error(reason)
+        node.get_logger().error(reason)
         self.config_errors.append(reason)
-        return self.declare_parameter(name, default, desc, ignore_override=True)
+        return node.declare_parameter(name, default, desc, ignore_override=True)
 
     def _overrides(self) -> dict:
         """Return the parameter overrides (params file, -p) by name."""
-        return dict(getattr(self, '_parameter_overrides', {}))
+        return dict(getattr(self._node, '_parameter_overrides', {}))
 
     def _declare_robot_parameters(self) -> None:
         """Declare the robot keys; defaults from the base config (see ``robot``)."""
         overrides = self._overrides()
-        robot = self.get_parameter('robot').value
-        self._base: RobotConfig | None = None
+        robot = self.value('robot')
         try:
             if robot or not any(k in overrides for k in ('robot_name', 'urdf', 'feet')):
-                self._base = load_config(robot or 'hyq')
+                self.base = load_config(robot or 'hyq')
         except AwpError as exc:
-            self.model_error = f'no robot model: {exc}'
+            self.base_error = f'no robot model: {exc}'
         base = self._base_dict()
         for name, (ptype, text) in ROBOT_PARAMETER_DOCS.items():
             if name in base or name in overrides:   # any type: RobotConfig validates
                 default = base[name] if name in base else overrides[name].value
                 self._declare(name, default, text, dynamic=True)
             else:
-                self.declare_parameter(name, ptype, ParameterDescriptor(description=text))
+                self._node.declare_parameter(name, ptype, ParameterDescriptor(description=text))
         prefixed = {k for k in overrides if k.split('.', 1)[0] in ROBOT_PREFIXES and '.' in k}
         prefixed |= {k for k in base if '.' in k}
         for key in sorted(prefixed):
@@ -157,7 +188,7 @@ class NodeParameters:
 
     def _base_dict(self) -> dict:
         """Return the base config as flat parameter values (dotted keys)."""
-        c = self._base
+        c = self.base
         if c is None:
             return {}
         out = {'robot_name': c.robot_name, 'urdf': c.urdf, 'feet': list(c.feet),
@@ -169,46 +200,46 @@ class NodeParameters:
         out.update({f'standing_posture.{k}': float(v) for k, v in c.standing_posture.items()})
         return out
 
-    def _declare_torque_limits(self) -> None:
+    def declare_torque_limits(self, model) -> None:
         """
-        Declare ``torque_limits.<joint>`` for every leg joint, with the limit in use.
+        Declare ``torque_limits.<joint>`` for every leg joint of ``model``, with the limit in use.
 
-        One call for all of them: after a runtime model recovery the on-set callback then
-        runs once (the values are the ones in use, so nothing changes).
+        One call for all of them, accepted without validation: the values are the ones in
+        use, so nothing changes.
         """
+        node = self._node
         new = []
-        for leg in self.pipeline.evaluator.model.legs.values():
+        for leg in model.legs.values():
             for j, lo, hi in zip(leg.joints, leg.tau_min.tolist(), leg.tau_max.tolist()):
                 key = f'torque_limits.{j}'
-                if not self.has_parameter(key):
+                if not node.has_parameter(key):
                     text = ROBOT_PREFIXES['torque_limits'][1].format(j)
                     new.append((key, limit_value((lo, hi)),
                                 ParameterDescriptor(name=key, description=text,
                                                     dynamic_typing=True)))
-        self._limits_declared = True
         if new:
+            self._declaring = True      # the values in use: nothing to validate or apply
             try:
-                self.declare_parameters('', new)
+                node.declare_parameters('', new)
             except Exception as exc:  # noqa: BLE001 -- the limits stay in use, undeclared
-                self.get_logger().warning(f'torque_limits.* parameters not declared: {exc}')
+                node.get_logger().warning(f'torque_limits.* parameters not declared: {exc}')
+            finally:
+                self._declaring = False
 
-    def _robot_values(self, changes: dict | None = None) -> dict:
-        """Return the robot keys' values (with ``changes``) as plain Python values."""
-        names = [n for n in self.list_parameters([], 0).names
+    # -- values ----------------------------------------------------------------------------
+
+    def robot_config(self, changes: dict | None = None) -> RobotConfig:
+        """Build the RobotConfig from the parameters (``changes`` applied)."""
+        node = self._node
+        names = [n for n in node.list_parameters([], 0).names
                  if n in ROBOT_PARAMETER_DOCS or n.split('.', 1)[0] in ROBOT_PREFIXES]
-        values = {p.name: p.value for p in self.get_parameters(names)}
+        values = {p.name: p.value for p in node.get_parameters(names)}
         values.update(changes or {})
         values = {k: (list(v) if isinstance(v, (array, tuple)) else v)
                   for k, v in values.items() if v is not None}
-        return values
-
-    def _robot_config(self, changes: dict | None = None) -> RobotConfig:
-        """Build the RobotConfig from the parameters (``changes`` applied)."""
-        values = self._robot_values(changes)
-        base_dir = self._base.base_dir if self._base is not None else None
+        base_dir = self.base.base_dir if self.base is not None else None
         config = RobotConfig.from_dict(values, base_dir=base_dir)
-        urdf = (changes or {}).get('robot_description',
-                                   self.get_parameter('robot_description').value)
+        urdf = (changes or {}).get('robot_description', self.value('robot_description'))
         if urdf:
             if not isinstance(urdf, str) or not urdf.lstrip().startswith('<'):
                 text = urdf[:60] if isinstance(urdf, str) else urdf
@@ -217,49 +248,43 @@ class NodeParameters:
             config = replace(config, urdf=urdf)
         return config
 
-    def _pipeline_params(self, changes: dict | None = None) -> PipelineParams:
+    def pipeline_params(self, changes: dict | None = None) -> PipelineParams:
         """Build the PipelineParams from the parameters (``changes`` applied)."""
-        kw = {name: self.get_parameter(name).value for name in _FIELDS}
+        kw = {name: self.value(name) for name in _FIELDS}
         kw.update({k: v for k, v in (changes or {}).items() if k in _FIELDS})
         return PipelineParams.from_dict(kw)
 
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """Validate a parameter change; apply it from the next joint state on."""
+    # -- runtime changes -------------------------------------------------------------------
+
+    def _validate(self, params: list[Parameter]) -> SetParametersResult:
+        """Check a parameter change (on-set): build what it needs, keep it for :meth:`_apply`."""
         changes = {p.name: p.value for p in params}
+        self._pending = None
+        if self._declaring:
+            return SetParametersResult(successful=True)
         try:
-            new_params = self._pipeline_params(changes)
-            robot = {k for k in changes if k in ROBOT_PARAMETER_DOCS or k == 'robot_description'
-                     or k.split('.', 1)[0] in ROBOT_PREFIXES}
-            if self.pipeline is None and robot:
-                self.pipeline = Pipeline(self._robot_config(changes), new_params,
-                                         input_buffer=self.get_parameter('qos_depth').value)
-                self.model_error = self.diagnostics.model_error = ''
-                self.diagnostics.hardware_id = self.pipeline.config.robot_name
-                self.get_logger().info(f'robot model {self.pipeline.config.robot_name!r} '
-                                       'built; evaluating joint states')
-            elif self.pipeline is not None:
-                if robot:
-                    self.pipeline.set_config(self._robot_config(changes))
-                self.pipeline.set_params(new_params)
+            new_params = self.pipeline_params(changes)
+            robot = any(k in ROBOT_PARAMETER_DOCS or k == 'robot_description'
+                        or k.split('.', 1)[0] in ROBOT_PREFIXES for k in changes)
+            evaluator = None
+            if robot:
+                evaluator = FeasibilityEvaluator(self.robot_config(changes))
+                check_marker_frame(new_params, evaluator.model.root_link)
+            elif self._root_link() is not None:
+                check_marker_frame(new_params, self._root_link())
         except (AwpError, ValueError, TypeError) as exc:
             reason = f'rejected {sorted(changes)}: {exc}'
-            self.get_logger().warning(reason)
+            self._node.get_logger().warning(reason)
             return SetParametersResult(successful=False, reason=reason)
-        self.diagnostics.stale_timeout_s = new_params.stale_timeout_s
-        if 'max_queue_delay_s' in changes:
-            self.max_queue_delay_s = float(changes['max_queue_delay_s'])
+        self._pending = (evaluator, new_params)
         return SetParametersResult(successful=True)
 
-    def checked_choice(self, name: str, choices: tuple[str, ...]) -> str:
-        """Return parameter ``name`` if among ``choices``, else log, list and use the first."""
-        value = self.get_parameter(name).value
-        if value in choices:
-            return value
-        reason = (f"{name} must be {' or '.join(repr(c) for c in choices)}, got {value!r}; "
-                  f'using {choices[0]!r}')
-        self.get_logger().error(reason)
-        self.config_errors.append(reason)
-        return choices[0]
+    def _apply(self, params: list[Parameter]) -> None:
+        """Apply a validated change (post-set) from the next joint state on."""
+        if self._pending is not None:
+            evaluator, new_params = self._pending
+            self._pending = None
+            self._apply_fn(evaluator, new_params)
 
 
 def limit_value(pair) -> float | list[float]:

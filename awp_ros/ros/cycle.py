@@ -48,6 +48,14 @@ class Cycle:
         self._sides = pyramid_sides
         self._cache: dict = {}
 
+    @classmethod
+    def unevaluated(cls, report: FeasibilityReport) -> Cycle:
+        """Return the outputs of a joint state that was not evaluated: its report only."""
+        return cls(report.header, report, None, fws_computed=False, markers_due=False,
+                   marker_header=report.header, marker_frame=(np.eye(3), np.zeros(3)),
+                   style=MarkerStyle(), reference_point=np.zeros(3), latest_fws=None,
+                   pyramid_sides=4)
+
     def _wrench(self, kind: str) -> WrenchPolytope | None:
         r = self.result
         if r is None or (kind == 'fws' and not self.fws_computed):

@@ -35,7 +35,7 @@ adds a warning to that report. Output messages other than the report are built o
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 from dataclasses import replace
 import os
 import time
@@ -57,7 +57,8 @@ from awp_ros.ros.input_buffer import InputBuffer, stale_reason
 from awp_ros.ros.markers import MarkerStyle
 from awp_ros.ros.pipeline_params import PipelineParams
 
-__all__ = ['MAX_REASON_CHARS', 'Pipeline']
+__all__ = ['MAX_REASON_CHARS', 'Pipeline', 'check_marker_frame', 'loss_note',
+           'unevaluated_report']
 
 _S = FeasibilityReport
 
@@ -69,7 +70,8 @@ class Pipeline:
     """
     Turn input messages into output messages (see the module docstring).
 
-    :param config: the robot config (a name or YAML path is loaded by the evaluator).
+    :param config: the robot config (a name or YAML path is loaded by the evaluator), or
+        an evaluator built for it.
     :param params: the pipeline parameters.
     :param input_buffer: contacts (and imu) messages kept for joint states that have not
         caught up with them (the node passes its ``qos_depth``: a node lagging by that many
@@ -77,12 +79,13 @@ class Pipeline:
     :raises ConfigError, ModelError: bad config, unusable URDF, bad marker_frame_id.
     """
 
-    def __init__(self, config: RobotConfig | str, params: PipelineParams | None = None, *,
-                 input_buffer: int = 10000) -> None:
-        self.evaluator = FeasibilityEvaluator(config)
+    def __init__(self, config: RobotConfig | str | FeasibilityEvaluator,
+                 params: PipelineParams | None = None, *, input_buffer: int = 10000) -> None:
+        self.evaluator = config if isinstance(config, FeasibilityEvaluator) \
+            else FeasibilityEvaluator(config)
         self._joint_names = frozenset(self.evaluator.model.joint_names)
         self.params = PipelineParams() if params is None else params
-        self._check_marker_frame(self.params)
+        check_marker_frame(self.params, self.root_link)
         self._contacts = InputBuffer(input_buffer)
         self._imu = InputBuffer(input_buffer)
         self._last_js_ns: int | None = None
@@ -123,20 +126,17 @@ class Pipeline:
         """Return the URDF root link (the free flyer's child body), e.g. ``base_link``."""
         return self.evaluator.model.root_link
 
-    def set_config(self, config: RobotConfig) -> None:
+    def set_config(self, config: RobotConfig | FeasibilityEvaluator) -> None:
         """
-        Use a new robot config from the next message on (rebuilds the evaluator).
+        Use a new robot config (or an evaluator built for it) from the next message on.
 
-        :raises ConfigError, ModelError: the config is unusable (the old one stays).
+        :raises ConfigError, ModelError: the config is unusable, or ``marker_frame_id`` is
+            not valid for its model (the old config stays).
         """
-        evaluator = FeasibilityEvaluator(config)
-        old = self.evaluator
+        evaluator = config if isinstance(config, FeasibilityEvaluator) \
+            else FeasibilityEvaluator(config)
+        check_marker_frame(self.params, evaluator.model.root_link)
         self.evaluator = evaluator
-        try:
-            self._check_marker_frame(self.params)
-        except ConfigError:
-            self.evaluator = old
-            raise
         self._joint_names = frozenset(evaluator.model.joint_names)
         self._latest_fws_stance = None
 
@@ -147,16 +147,8 @@ class Pipeline:
         :raises ConfigError: ``marker_frame_id`` is neither '' nor the wrench frame nor the
             root link.
         """
-        self._check_marker_frame(params)
+        check_marker_frame(params, self.root_link)
         self.params = params
-
-    def _check_marker_frame(self, params: PipelineParams) -> None:
-        frame = params.marker_frame_id
-        if frame not in ('', params.wrench_frame_id, self.root_link):
-            msg = (f"marker_frame_id must be '', the wrench frame "
-                   f'{params.wrench_frame_id!r} or the root link {self.root_link!r}; got '
-                   f'{frame!r}')
-            raise ConfigError(msg)
 
     # -- inputs ----------------------------------------------------------------------------
 
@@ -168,18 +160,27 @@ class Pipeline:
         """Keep an IMU message for the joint states it precedes (used when ``use_imu``)."""
         self._imu.add(msg)
 
-    def on_joint_state(self, msg: JointState, notes: Sequence[str] = ()) -> Cycle:
+    def on_joint_state(self, msg: JointState, *, missing: int = 0,
+                       queue_delay_s: float = 0.0) -> Cycle:
         """
         Evaluate one joint-state message and return its outputs.
 
-        :param notes: warnings of the caller about this message (e.g. messages lost
-            before it), put first in the report's ``status_message``.
+        :param missing: joint states published before this one that never arrived (the
+            node counts them from sequence gaps): a warning first in ``status_message``.
+        :param queue_delay_s: how long the message waited in the input queue [s]; beyond
+            ``max_queue_delay_s`` (when > 0) it is answered unevaluated (load shedding).
         """
         t0 = time.perf_counter()
         p = self.params
+        notes = [loss_note(missing)] if missing else []
+        if 0.0 < p.max_queue_delay_s < queue_delay_s:
+            report = unevaluated_report(msg, p.wrench_frame_id, _S.STATUS_STALE_INPUT, '; '.join(
+                notes + [f'not evaluated: the joint state waited {queue_delay_s:.3f} s in the '
+                         f'input queue (max_queue_delay_s {p.max_queue_delay_s:g}); the node '
+                         'is overloaded and sheds load']), t0=t0)
+            return Cycle.unevaluated(report)
         ns = stamp_to_ns(msg.header.stamp)
         header = Header(stamp=msg.header.stamp, frame_id=p.wrench_frame_id)
-        notes = list(notes)
         if self._last_js_ns is not None and ns < self._last_js_ns:
             notes.append(f'joint_states stamp went back by {(self._last_js_ns - ns) * 1e-9:.6g}'
                          ' s; throttles restarted')
@@ -273,3 +274,37 @@ def _advance(last_ns: int | None, ns: int, rate_hz: float) -> int:
     period = int(round(1e9 / rate_hz))
     nxt = last_ns + period
     return nxt if ns - nxt < period else ns
+
+
+def loss_note(missing: int) -> str:
+    """Return the report warning for ``missing`` joint states that never arrived."""
+    return (f'{missing} joint states published before this one never arrived (a full input '
+            'queue: the node fell qos_depth behind; or a lossy link); they got no report')
+
+
+def unevaluated_report(msg: JointState, frame_id: str, status: int, reason: str, *,
+                       t0: float | None = None) -> FeasibilityReport:
+    """
+    Return the report of a joint state that is not evaluated (margins NaN, not feasible).
+
+    :param t0: ``time.perf_counter()`` when the message was taken (for ``compute_time``).
+    """
+    t0 = time.perf_counter() if t0 is None else t0
+    report = error_report(Header(stamp=msg.header.stamp, frame_id=frame_id), status,
+                          reason[:MAX_REASON_CHARS - 3] + '...' if len(reason) > MAX_REASON_CHARS
+                          else reason)
+    report.compute_time = time.perf_counter() - t0
+    return report
+
+
+def check_marker_frame(params: PipelineParams, root_link: str) -> None:
+    """
+    Check ``marker_frame_id``: '', the wrench frame, or the model's root link.
+
+    :raises ConfigError: any other frame (markers are drawn in one of these two frames).
+    """
+    frame = params.marker_frame_id
+    if frame not in ('', params.wrench_frame_id, root_link):
+        msg = (f"marker_frame_id must be '', the wrench frame {params.wrench_frame_id!r} or "
+               f'the root link {root_link!r}; got {frame!r}')
+        raise ConfigError(msg)

@@ -29,10 +29,11 @@ class PipelineParams:
     marker_moment_scale: float = 0.002
     use_imu: bool = False
     use_joint_velocities: bool = True
+    max_queue_delay_s: float = 0.0
 
     def __post_init__(self) -> None:
         """Validate every field (raise ConfigError naming the bad value)."""
-        for name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz'):
+        for name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz', 'max_queue_delay_s'):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ConfigError(f'{name} must be a finite number >= 0, got {value!r}')
@@ -90,4 +91,9 @@ PARAMETER_DOCS = {
                '(read-only)',
     'use_joint_velocities': 'use joint_states velocities (Coriolis terms of the bias '
                             'torques, seed eq. 1)',
+    'max_queue_delay_s': 'load shedding: a joint state that waited longer than this in the '
+                         'input queue (the node is slower than its input) is answered at once '
+                         'with a STATUS_STALE_INPUT report instead of being evaluated, so '
+                         'latency stays bounded and the queue never overflows [s]; 0 = '
+                         'evaluate every joint state however late',
 }
