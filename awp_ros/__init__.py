@@ -31,7 +31,8 @@ Package-wide: :mod:`awp_ros.errors` (every exception the package raises) and
 
 from __future__ import annotations
 
-from awp_ros.errors import AwpError, BagError, ConfigError, GeometryError, InputError, ModelError
+from awp_ros.errors import (AwpError, BagError, ConfigError, GeometryError, InputError,
+                            ModelError, ProcessError)
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
 from awp_ros.geometry.margin import directional_margins, polytope_margin, SetMargin
@@ -56,6 +57,7 @@ __all__ = [
     'LegResult',
     'ModelError',
     'Polytope',
+    'ProcessError',
     'RobotConfig',
     'RobotModel',
     'RobotState',

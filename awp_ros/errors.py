@@ -15,6 +15,7 @@ __all__ = [
     'ModelError',
     'GeometryError',
     'BagError',
+    'ProcessError',
 ]
 
 
@@ -40,3 +41,7 @@ class GeometryError(AwpError):
 
 class BagError(AwpError, ValueError):
     """A rosbag2 file is unreadable, truncated, or lacks a needed topic or type."""
+
+
+class ProcessError(AwpError):
+    """A process the package started (``awp_node``, a soak driver) failed or did not answer."""

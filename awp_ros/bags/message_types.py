@@ -18,8 +18,8 @@ import sys
 
 from awp_ros.errors import BagError
 
-__all__ = ['JOINT_STATE', 'CONTACT_STATE', 'IMU', 'INPUT_TOPICS', 'OUTPUT_TYPES', 'msg_dirs',
-           'typestore', 'message_class']
+__all__ = ['CONTACT_STATE', 'IMU', 'INPUT_TOPICS', 'JOINT_STATE', 'OUTPUT_TYPES', 'message_class',
+           'msg_dirs', 'serialize', 'typestore']
 
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 CONTACT_STATE = 'awp_ros_msgs/msg/ContactState'
@@ -92,3 +92,23 @@ def message_class(msgtype: str):
     except (ImportError, AttributeError) as exc:
         raise BagError(f'unknown message type {msgtype!r}: no Python interface for it is '
                        f'installed ({exc})') from exc
+
+
+def serialize(msg, msgtype: str) -> bytes:
+    """
+    Return an rclpy message as CDR bytes of exactly its serialized length.
+
+    rclpy's ``serialize_message`` (rmw_fastrtps) returns a buffer sized by an estimate that
+    counts 8-byte alignment for empty ``float64[]`` sequences, so it can end with a few
+    bytes of garbage; strict readers (rosbags: at most 3 trailing bytes) reject such a bag.
+    The true length is where the typestore's deserializer stops, rounded up to 4 bytes.
+    """
+    from rclpy.serialization import serialize_message
+
+    raw = bytes(serialize_message(msg))
+    store = typestore()
+    msgdef = store.get_msgdef(msgtype)
+    func = msgdef.deserialize_cdr_le if raw[1] else msgdef.deserialize_cdr_be
+    _, pos = func(raw[4:], 0, msgdef.cls, store)
+    end = 4 + pos + (-pos % 4)
+    return raw[:end] if end < len(raw) else raw

@@ -17,7 +17,8 @@ from collections.abc import Iterable, Mapping
 import time
 from typing import TextIO
 
-from awp_ros.bags.message_types import INPUT_TOPICS, message_class, OUTPUT_TYPES, typestore
+from awp_ros.bags.message_types import (INPUT_TOPICS, message_class, OUTPUT_TYPES,
+                                        serialize, typestore)
 from awp_ros.bags.progress import Progress
 from awp_ros.bags.reader import bag_info, BagMessage, read_bag
 from awp_ros.bags.summary import ReplaySummary, summarize_reports
@@ -74,7 +75,7 @@ def replay_bag(in_bag, out_bag, *, pipeline, topics: Mapping[str, str] | None = 
     :return: the summary (counts, margin statistics, wall time).
     :raises BagError: unreadable or truncated bag, missing input topic, wrong types.
     """
-    from rclpy.serialization import deserialize_message, serialize_message
+    from rclpy.serialization import deserialize_message
 
     from awp_ros.ros.cycle import OUTPUTS
 
@@ -118,7 +119,7 @@ def replay_bag(in_bag, out_bag, *, pipeline, topics: Mapping[str, str] | None = 
                 if out is None:
                     continue
                 writer.write(BagMessage(prefix + name, OUTPUT_TYPES[name], msg.timestamp,
-                                        bytes(serialize_message(out))))
+                                        serialize(out, OUTPUT_TYPES[name])))
                 summary.outputs[name] = summary.outputs.get(name, 0) + 1
     bar.close()
     wall = time.monotonic() - start

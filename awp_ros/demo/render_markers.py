@@ -24,6 +24,9 @@ import sys
 import numpy as np
 from visualization_msgs.msg import Marker, MarkerArray
 
+from awp_ros.cli.support import run_main
+from awp_ros.errors import ProcessError
+
 __all__ = ['main', 'render_marker_array']
 
 
@@ -143,7 +146,7 @@ def _from_topic(topic: str, timeout: float, legs: int | None = None) -> MarkerAr
         node.destroy_node()
         rclpy.try_shutdown()
     if not got:
-        raise SystemExit(f'render_markers: no MarkerArray on {topic} within {timeout} s')
+        raise ProcessError(f'no MarkerArray on {topic} within {timeout} s')
     return got[0]
 
 
@@ -178,6 +181,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--azim', type=float, default=-60.0, help='camera azimuth [deg]')
     parser.add_argument('--title', default='', help='figure title')
     args = parser.parse_args(argv)
+    return run_main('render_markers', lambda: _render(args))
+
+
+def _render(args) -> int:
     if args.topic:
         arr = _from_topic(args.topic, args.timeout, args.legs)
     else:

@@ -17,6 +17,7 @@ import sys
 
 import numpy as np
 
+from awp_ros.errors import InputError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 
 __all__ = ['fraction_outside_fws', 'main']
@@ -30,7 +31,7 @@ def fraction_outside_fws(evaluator: FeasibilityEvaluator, *, stance=None, mu=Non
     result = evaluator.evaluate(evaluator.standing_state(stance=stance,
                                                          friction_coefficient=mu))
     if result.fwp.dimension < 6 or result.fwp.margin <= 0.0:
-        raise ValueError('hit-and-run needs a full-dimensional FWP containing the wrench')
+        raise InputError('hit-and-run needs a full-dimensional FWP containing the wrench')
     fwp, fws = result.fwp.polytope, result.fws.polytope
     x = result.wrench.copy()
     outside = 0

@@ -39,7 +39,7 @@ import time
 
 import numpy as np
 
-from awp_ros.errors import ConfigError
+from awp_ros.errors import ConfigError, InputError
 from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
 from awp_ros.geometry.margin import directional_margins, polytope_margin
 from awp_ros.geometry.polytope import Polytope
@@ -68,8 +68,10 @@ class FeasibilityEvaluator:
     :param singular_rtol: a leg whose Jacobian has smallest / largest singular value below
         this is singular (pseudo-inverse image, warning).
     :param near_singular_rtol: below this ratio a leg is flagged near-singular (warning).
-    :param feasibility_tol: tolerance of ``feasible`` on margins and hull residuals
-        [N, N.m].
+    :param feasibility_tol: tolerance of ``feasible`` on the signed margins [N, N.m].
+    :param hull_tol: distance of the wrench from a flat set's affine hull (1-2 stance legs)
+        up to which it counts as on the hull [N, N.m] (default ``feasibility_tol``): a
+        measured wrench is on the 5D hull of two stance legs only up to its estimation error.
     :raises ConfigError: bad config; :raises ModelError: unusable URDF.
 
     Not thread-safe: the evaluator owns one Pinocchio ``Data`` and reuses its buffers; use
@@ -77,12 +79,14 @@ class FeasibilityEvaluator:
     """
 
     def __init__(self, config: RobotConfig | str = 'hyq', *, singular_rtol: float = 1e-9,
-                 near_singular_rtol: float = 1e-2, feasibility_tol: float = 1e-6) -> None:
+                 near_singular_rtol: float = 1e-2, feasibility_tol: float = 1e-6,
+                 hull_tol: float | None = None) -> None:
         self.config = config if isinstance(config, RobotConfig) else load_config(config)
         self.model = RobotModel(self.config)
         self.singular_rtol = singular_rtol
         self.near_singular_rtol = near_singular_rtol
         self.feasibility_tol = feasibility_tol
+        self.hull_tol = feasibility_tol if hull_tol is None else max(hull_tol, feasibility_tol)
         legs = self.model.legs
         self._three_joint = all(len(leg.joints) == 3 for leg in legs.values())
         self._tau_min = {f: leg.tau_min for f, leg in legs.items()}
@@ -102,13 +106,17 @@ class FeasibilityEvaluator:
         joints = dict(zip(self.model.joint_names, self.model.standing_q.tolist()))
         return RobotState(joint_positions=joints, **kw)
 
-    def evaluate(self, state: RobotState, *, fws: bool = True) -> FeasibilityResult:
+    def evaluate(self, state: RobotState, *, fws: bool = True,
+                 wrench: np.ndarray | None = None) -> FeasibilityResult:
         """
         Evaluate one state (see the module docstring for the stages).
 
         :param state: the robot state.
         :param fws: also compute the FWS, its directional margins and Euclidean margin
             (:meth:`add_fws`).
+        :param wrench: a wrench ``[f; tau]`` [N, N.m] (about the CoM, world-aligned axes) whose
+            margins to report instead of the state's gravito-inertial wrench, e.g. the
+            centroidal wrench a planner or an MPC intends; the sets are the state's.
         :return: the :class:`FeasibilityResult`.
         :raises InputError: invalid state (the message names the bad value).
         """
@@ -122,6 +130,10 @@ class FeasibilityEvaluator:
         t1 = clock()
         kin = model.kinematics(s.q, s.stance, quaternion=s.quaternion, v=s.v, a=s.a)
         w, p = kin.wrench, kin.p_foot__com
+        if wrench is not None:
+            w = np.asarray(wrench, dtype=float)
+            if w.shape != (6,) or not np.all(np.isfinite(w)):
+                raise InputError(f'wrench must be 6 finite numbers [N, N.m], got {wrench!r}')
         t2 = clock()
         forces, stacked = self._force_polytopes(s.stance, kin.J, kin.bias, warnings)
         t3 = clock()
@@ -146,9 +158,9 @@ class FeasibilityEvaluator:
         t6 = clock()
         tol = self.feasibility_tol
         awp_r = WrenchSetResult.from_margin('awp', awp, polytope_margin(
-            awp, w, feasibility_tol=tol))
+            awp, w, feasibility_tol=tol, hull_tol=self.hull_tol))
         fwp_r = WrenchSetResult.from_margin('fwp', fwp, polytope_margin(
-            fwp, w, feasibility_tol=tol))
+            fwp, w, feasibility_tol=tol, hull_tol=self.hull_tol))
         legs = {foot: LegResult(foot, p[k], s.normals[k], float(s.mus[k]), forces[k],
                                 partial(frictions.__getitem__, k), forces[k].meta['singular'],
                                 forces[k].meta['near_singular'])
@@ -159,7 +171,8 @@ class FeasibilityEvaluator:
                    'awp': 1e3 * (t5 - t4), 'cwc_fwp': 1e3 * (t6 - t5),
                    'margins': 1e3 * (t7 - t6), 'total': 1e3 * (t7 - t0)}
         result = FeasibilityResult(cfg.robot_name, s.stance, kin.mass, kin.com, w, legs,
-                                   awp_r, fwp_r, None, warnings, timings)
+                                   awp_r, fwp_r, None, warnings, timings,
+                                   'quasi_static' if s.v is None and s.a is None else 'measured')
         if fws:
             self.add_fws(result)
         return result
@@ -188,7 +201,7 @@ class FeasibilityEvaluator:
         plus, minus = directional_margins(S, w, feasibility_tol=tol)
         t2 = clock()
         fws_r = WrenchSetResult.from_margin('fws', S, polytope_margin(
-            S, w, feasibility_tol=tol))
+            S, w, feasibility_tol=tol, hull_tol=self.hull_tol))
         t3 = clock()
         fws_r.directional = {axis: (float(a), float(b)) for axis, a, b in zip(AXES, plus, minus)}
         result.fws = fws_r

@@ -70,10 +70,14 @@ class WrenchSetResult:
     """
     A 6D wrench set (AWP, FWP or FWS) and the margin of the evaluated wrench.
 
-    ``margin`` [N, N.m]: signed distance inside the affine hull (positive inside);
+    ``margin`` [N, N.m]: signed margin, positive only when ``w`` is in the set (the distance
+    to its boundary), negative whenever it is not (minus the distance from ``w`` to the set,
+    off its affine hull included); ``margin_in_hull``: the margin of ``w``'s projection on
+    the affine hull, measured inside it (equal to ``margin`` for 6D sets);
     ``normal``: unit witness (outward normal of the nearest facet, or direction from the set
     to ``w``); ``dimension``: affine dimension (-1 empty, 0 for no stance leg, 3 for one leg,
     5 for two, 6 otherwise); ``affine_residual``: distance of ``w`` to the hull;
+    ``feasible``: ``margin >= -feasibility_tol``;
     ``directional``: axis -> (plus, minus) extra admissible force [N] / moment [N.m].
     """
 
@@ -84,13 +88,15 @@ class WrenchSetResult:
     dimension: int
     affine_residual: float
     feasible: bool
+    margin_in_hull: float
     directional: dict[str, tuple[float, float]] | None = None
 
     @classmethod
     def from_margin(cls, name: str, polytope: Polytope, m: SetMargin) -> WrenchSetResult:
         """Wrap a polytope and its :class:`~awp_ros.geometry.margin.SetMargin`."""
         return cls(name, polytope, float(m.margin), np.asarray(m.normal, dtype=float),
-                   int(m.dimension), float(m.affine_residual), bool(m.feasible))
+                   int(m.dimension), float(m.affine_residual), bool(m.feasible),
+                   float(m.margin_in_hull))
 
     def to_dict(self, *, halfspaces: bool = True) -> dict:
         """
@@ -101,6 +107,7 @@ class WrenchSetResult:
         """
         out = {
             'margin': _float(self.margin),
+            'margin_in_hull': _float(self.margin_in_hull),
             'normal': _floats(self.normal),
             'dimension': self.dimension,
             'affine_residual': _float(self.affine_residual),
@@ -127,6 +134,8 @@ class FeasibilityResult:
     stance foot (config order) to its :class:`LegResult`; ``fws`` is None when not requested.
     ``timings_ms`` [ms]: one entry per stage, ``total`` (the per-cycle evaluation without the
     FWS) and, once the FWS is computed, ``fws``, ``fws_directional`` and ``fws_margin``.
+    ``motion``: ``'measured'`` when the state carried motion (velocities or accelerations:
+    the wrench and the leg biases include the dynamics terms), else ``'quasi_static'``.
     """
 
     robot: str
@@ -140,6 +149,7 @@ class FeasibilityResult:
     fws: WrenchSetResult | None
     warnings: list[str]
     timings_ms: dict[str, float]
+    motion: str = 'quasi_static'
 
     @property
     def status(self) -> str:
@@ -159,6 +169,7 @@ class FeasibilityResult:
             'warnings': list(self.warnings),
             'feasible': self.feasible,
             'stance': list(self.stance),
+            'motion': self.motion,
             'mass': self.mass,
             'com': _floats(self.com),
             'wrench': _floats(self.wrench),

@@ -32,6 +32,7 @@ from typing import NamedTuple
 import numpy as np
 from scipy.linalg.lapack import dpotrf as _dpotrf
 
+from awp_ros.errors import InputError
 from awp_ros.geometry.exterior import hodge_normal, wedge_rows, wedge_table
 
 __all__ = [
@@ -144,7 +145,7 @@ def hyperplane_normals(B: np.ndarray, rank_tol: float = 1e-9) -> tuple[np.ndarra
     m, k, d = B.shape
     if k != d - 1:
         msg = f'hyperplane_normals needs (m, d - 1, d) vectors; got shape {B.shape}'
-        raise ValueError(msg)
+        raise InputError(msg)
     scale = np.sqrt(np.einsum('mkd,mkd->km', B, B))
     nonzero = np.all(scale > 0.0, axis=0)
     if d == 1:
@@ -214,7 +215,7 @@ def subset_cross_products(V: np.ndarray, subsets: np.ndarray | SubsetTree, *,
         np.asarray(subsets, dtype=np.intp).reshape(-1, d - 1))
     if tree.width != d - 1:
         msg = f'subsets of {tree.width} vectors do not span hyperplanes of R^{d}'
-        raise ValueError(msg)
+        raise InputError(msg)
     if not tree.levels:
         return np.ones((tree.size, 1))
     V = V[:, :tree.vectors]

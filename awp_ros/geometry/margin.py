@@ -10,11 +10,19 @@ origin at the CoM; or a force in [N]) this module reports
 
     \rho = \mathrm{dist}(w, \mathrm{aff}\,P), \qquad
     \bar w = o + U U^T (w - o), \qquad
-    m = \begin{cases} \mathrm{dist}(\bar w, \partial P) & \bar w \in P \\
-                      -\mathrm{dist}(\bar w, P) & \bar w \notin P \end{cases}
+    m_h = \begin{cases} \mathrm{dist}(\bar w, \partial P) & \bar w \in P \\
+                        -\mathrm{dist}(\bar w, P) & \bar w \notin P \end{cases}
 
-where the boundary is relative to the affine hull (the margin of the projection inside the
-hull). Equations used below:
+    m = \begin{cases} m_h & \rho \le \epsilon_h \\
+                      -\sqrt{\rho^2 + \max(0, -m_h)^2} = -\mathrm{dist}(w, P)
+                      & \rho > \epsilon_h \end{cases}
+
+where the boundary is relative to the affine hull: ``m_h`` (``margin_in_hull``) is the margin
+of the projection inside the hull, and the signed margin ``m`` is negative whenever ``w`` is
+not in ``P``: off the hull (farther than the hull tolerance ``eps_h``) it is minus the
+Euclidean distance from ``w`` to ``P`` (``P`` lies in its hull, so the distance splits into
+the orthogonal parts ``rho`` and ``dist(w_bar, P)``). ``w`` is feasible exactly when
+``m >= -eps`` (``feasibility_tol``; ``eps_h >= eps``). Equations used below:
 
     (1) inside:  m = min_i (b_i - a_i . w) over a complete H-rep with unit rows
                  (redundant valid rows cannot lower the minimum below the true distance);
@@ -45,15 +53,18 @@ class SetMargin:
     """
     Signed margin of a point w.r.t. a polytope (see the module docstring).
 
-    :ivar margin: signed Euclidean distance inside the affine hull [N, N.m]; positive inside,
-        minus the distance to the set outside, 0 for a point set; ``-inf`` for the empty set.
+    :ivar margin: signed Euclidean margin [N, N.m]: the distance to the set's (relative)
+        boundary when ``w`` is in the set, minus the distance from ``w`` to the set when it
+        is not (off the affine hull included); ``-inf`` for the empty set.
+    :ivar margin_in_hull: the margin of ``w``'s projection on the affine hull, measured
+        inside the hull (equal to ``margin`` for full-dimensional sets).
     :ivar normal: unit witness normal of shape ``(n,)`` in ambient coordinates: the outward
         normal of the nearest facet (inside) or ``(w - nearest point) / |.|`` (outside),
         restricted to the hull; zeros for a point set, the empty set, or a margin of exactly 0
         outside (ties).
     :ivar dimension: affine dimension of the set (-1 when empty).
     :ivar affine_residual: distance from w to the set's affine hull [N, N.m] (``inf`` if empty).
-    :ivar feasible: ``affine_residual <= tol and margin >= -tol``.
+    :ivar feasible: ``margin >= -feasibility_tol`` (so ``affine_residual <= hull_tol``).
     """
 
     margin: float
@@ -61,10 +72,12 @@ class SetMargin:
     dimension: int
     affine_residual: float
     feasible: bool
+    margin_in_hull: float
 
 
 def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6,
-                    row_tol: float = 1e-12, working_set: int = 24) -> SetMargin:
+                    hull_tol: float | None = None, row_tol: float = 1e-12,
+                    working_set: int = 24) -> SetMargin:
     r"""
     Return the signed Euclidean margin of ``w`` with respect to ``P``.
 
@@ -78,8 +91,11 @@ def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6
     :param P: the polytope (or polyhedral cone with ``b = 0``), complete H-rep required;
         redundant rows are allowed.
     :param w: point of shape ``(n,)``, same units and frame as ``P`` ([N] or [N, N.m]).
-    :param feasibility_tol: tolerance on the residual and the margin for ``feasible``
-        [same units as w].
+    :param feasibility_tol: tolerance on the margin for ``feasible`` [same units as w].
+    :param hull_tol: distance from the affine hull up to which ``w`` counts as on it
+        (default ``feasibility_tol``; at least ``feasibility_tol``) [same units as w]: with
+        1-2 stance legs a measured wrench is on the flat sets' hull only up to its
+        estimation error.
     :param row_tol: rows whose projection on the hull's direction space is shorter than this
         are constant constraints and are dropped (a violated one means an empty set).
     :param working_set: initial number of most-violated rows in the least-distance problem;
@@ -90,8 +106,9 @@ def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6
     """
     n = P.ambient_dim
     w = _check_point(w, n)
+    hull_tol = feasibility_tol if hull_tol is None else max(hull_tol, feasibility_tol)
     if P.is_empty:
-        return SetMargin(-np.inf, np.zeros(n), -1, np.inf, False)
+        return SetMargin(-np.inf, np.zeros(n), -1, np.inf, False, -np.inf)
     U = P.hull_basis
     o = P.hull_origin
     d = w - o
@@ -99,12 +116,12 @@ def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6
     y = U.T @ d
     residual = 0.0 if r == n else float(np.linalg.norm(d - U @ y))
     if r == 0:
-        return SetMargin(0.0, np.zeros(n), 0, residual, residual <= feasibility_tol)
+        return _signed(0.0, np.zeros(n), 0, residual, feasibility_tol, hull_tol, d)
     # Eq. (1): the rows lie in the hull's direction space, so A w = A proj(w).
     s = P.b - P.A @ w
     if s.size == 0:
-        return SetMargin(np.inf, np.zeros(n), P.dimension, residual,
-                         residual <= feasibility_tol)
+        return _signed(np.inf, np.zeros(n), P.dimension, residual, feasibility_tol, hull_tol,
+                       d - U @ y)
     i = int(np.argmin(s))
     if s[i] >= 0.0:
         margin = float(s[i])
@@ -116,15 +133,34 @@ def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6
         else:
             G, h = _hull_rows(P, y, row_tol)
             if G is None:
-                return SetMargin(-np.inf, np.zeros(n), -1, np.inf, False)
+                return SetMargin(-np.inf, np.zeros(n), -1, np.inf, False, -np.inf)
         x = _least_distance(-G, -h, working_set=working_set)
         dist = float(np.linalg.norm(x))
         margin = -dist
         normal = -x / dist if dist > 0.0 else np.zeros(x.shape[0])
         if r < n:
             normal = U @ normal
-    feasible = residual <= feasibility_tol and margin >= -feasibility_tol
-    return SetMargin(margin, normal, P.dimension, residual, feasible)
+    return _signed(margin, normal, P.dimension, residual, feasibility_tol, hull_tol,
+                   d - U @ y)
+
+
+def _signed(m_hull: float, normal: np.ndarray, dimension: int, residual: float, tol: float,
+            hull_tol: float, off_hull: np.ndarray) -> SetMargin:
+    """
+    Return the SetMargin of a point whose in-hull margin is ``m_hull`` (module docstring).
+
+    :param off_hull: ``w - proj(w)``, the component of ``w`` off the hull (the witness when
+        ``w`` is off the hull and its projection inside the set).
+    """
+    if residual <= hull_tol:
+        return SetMargin(m_hull, normal, dimension, residual, m_hull >= -tol, m_hull)
+    outside = max(0.0, -m_hull)
+    dist = float(np.hypot(residual, outside))
+    # The nearest point's direction: the off-hull part plus the in-hull outward part.
+    witness = off_hull + (outside * normal if outside > 0.0 else 0.0)
+    norm = float(np.linalg.norm(witness))
+    witness = witness / norm if norm > 0.0 else witness
+    return SetMargin(-dist, witness, dimension, residual, False, m_hull)
 
 
 def directional_margins(P: Polytope, w: np.ndarray, directions: np.ndarray | None = None, *,

@@ -13,7 +13,8 @@ Conventions (SI units):
   angular rate; Pinocchio's free-flyer velocity).
 - ``base_acceleration``: ``[a; alpha]`` [m/s^2, rad/s^2], the classical (not spatial)
   linear acceleration of the base origin without gravity (an IMU's specific force plus
-  ``R^T g``) and the angular acceleration, both **expressed in the base frame**.
+  ``R^T g``) and the angular acceleration, both **expressed in the base frame**; None
+  means zero (also when ``base_twist`` is given).
 - ``stance``: the feet in contact (any subset of the config's feet, possibly empty);
   ``None`` means all feet.
 - ``normals``: foot -> contact normal (world axes, pointing from the ground into the robot);
@@ -117,13 +118,15 @@ def resolve_state(state: RobotState, joint_names: Sequence[str], feet: Sequence[
             v[:6] = _vector(state.base_twist, 6, 'base_twist')
         if state.joint_velocities is not None:
             v[6:] = _joint_vector(state.joint_velocities, joint_names, 'joint_velocities')
-    if state.joint_accelerations is not None or state.base_acceleration is not None:
+    if state.joint_accelerations is not None or state.base_acceleration is not None \
+            or state.base_twist is not None:
         a = np.zeros(6 + nj)
         if state.base_acceleration is not None:
             a[:6] = _vector(state.base_acceleration, 6, 'base_acceleration')
-            if v is not None:
-                # Classical -> spatial: a_spatial = a_classical - omega x v (base frame).
-                a[:3] -= np.cross(v[3:6], v[:3])
+        if state.base_twist is not None:
+            # Classical -> spatial: a_spatial = a_classical - omega x v (base frame); an
+            # absent base_acceleration is a classical zero, not a spatial one.
+            a[:3] -= np.cross(v[3:6], v[:3])
         if state.joint_accelerations is not None:
             a[6:] = _joint_vector(state.joint_accelerations, joint_names,
                                   'joint_accelerations')

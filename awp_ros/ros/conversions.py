@@ -43,6 +43,7 @@ __all__ = [
     'KINDS',
     'STATUS_NAMES',
     'error_report',
+    'hull_equations',
     'leg_polytopes_msg',
     'polytope_from_msg',
     'polytope_to_msg',
@@ -94,7 +95,9 @@ def polytope_to_msg(P: Polytope, msg: PolytopeMsg | None = None) -> PolytopeMsg:
     :param P: the polytope, ambient dimension n (3: forces [N]; 6: wrenches [N, N.m]).
     :param msg: a message to fill in place (default: a new one).
     :return: the message: ``vertices`` (k x n), ``halfspace_normals`` (m x n),
-        ``halfspace_offsets`` (m), ``hull_origin`` (n), ``hull_basis`` (n x r), row-major.
+        ``halfspace_offsets`` (m), ``hull_origin`` (n), ``hull_basis`` (n x r), and the
+        affine hull's equations ``equality_normals`` C ((n - r) x n, orthonormal rows) and
+        ``equality_offsets`` d (C x = d), row-major.
     """
     msg = PolytopeMsg() if msg is None else msg
     msg.ambient_dimension = P.ambient_dim
@@ -104,7 +107,23 @@ def polytope_to_msg(P: Polytope, msg: PolytopeMsg | None = None) -> PolytopeMsg:
     msg.halfspace_offsets = _doubles(P.b)
     msg.hull_origin = _doubles(P.hull_origin)
     msg.hull_basis = _doubles(P.hull_basis)
+    C = hull_equations(P)
+    msg.equality_normals = _doubles(C)
+    msg.equality_offsets = _doubles(C @ P.hull_origin)
     return msg
+
+
+def hull_equations(P: Polytope) -> np.ndarray:
+    """
+    Return orthonormal rows ``C`` ((n - r) x n) with ``C x = C o`` on the affine hull of ``P``.
+
+    Empty for a full-dimensional or an empty set.
+    """
+    n, r = P.ambient_dim, int(P.dimension)
+    if r < 0 or r >= n:
+        return np.zeros((0, n))
+    Q, _ = np.linalg.qr(P.hull_basis, mode='complete')
+    return Q[:, r:].T
 
 
 def polytope_from_msg(msg: PolytopeMsg) -> Polytope:
@@ -131,6 +150,10 @@ def polytope_from_msg(msg: PolytopeMsg) -> Polytope:
     if U.size != n * max(r, 0):
         raise InputError(f'polytope message hull_basis has {U.size} values, not {n} x '
                          f'{max(r, 0)}')
+    C = _matrix(msg.equality_normals, n, 'equality_normals')
+    if len(msg.equality_offsets) != C.shape[0]:
+        raise InputError(f'polytope message has {C.shape[0]} equality normals but '
+                         f'{len(msg.equality_offsets)} offsets')
     return Polytope(r, V, A, b, o, U.reshape(n, max(r, 0)))
 
 
@@ -190,11 +213,13 @@ def _set_fields(msg: FeasibilityReport, name: str, s: WrenchSetResult | None) ->
     """Copy one set's margin, witness, dimension, residual and feasibility into the report."""
     if s is None:
         setattr(msg, f'{name}_margin', math.nan)
+        setattr(msg, f'{name}_margin_in_hull', math.nan)
         setattr(msg, f'{name}_normal', _NAN6.copy())
         setattr(msg, f'{name}_affine_residual', math.nan)
         setattr(msg, f'{name}_feasible', False)
         return
     setattr(msg, f'{name}_margin', float(s.margin))
+    setattr(msg, f'{name}_margin_in_hull', float(s.margin_in_hull))
     setattr(msg, f'{name}_normal', np.asarray(s.normal, dtype=np.float64))
     setattr(msg, f'{name}_dimension', max(int(s.dimension), 0))
     setattr(msg, f'{name}_affine_residual', float(s.affine_residual))
@@ -230,6 +255,10 @@ def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float
     msg.status_message = '; '.join(result.warnings) if status_message is None \
         else status_message
     msg.stance_feet = list(result.stance)
+    msg.motion = FeasibilityReport.MOTION_MEASURED if result.motion == 'measured' \
+        else FeasibilityReport.MOTION_QUASI_STATIC
+    msg.mass = float(result.mass)
+    msg.com.x, msg.com.y, msg.com.z = (float(c) for c in result.com)
     fx, fy, fz, tx, ty, tz = (float(c) for c in result.wrench)
     msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = fx, fy, fz
     msg.wrench.torque.x, msg.wrench.torque.y, msg.wrench.torque.z = tx, ty, tz
@@ -247,8 +276,37 @@ def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float
     if fws is not None:
         msg.fws_stamp = header.stamp if fws_stamp is None else fws_stamp
     msg.feasible = bool(msg.fwp_feasible and msg.fws_feasible)
+    _set_regions(msg, result)
+    _set_measured_forces(msg, None)
     msg.compute_time = float(compute_time)
     return msg
+
+
+def _set_regions(msg: FeasibilityReport, result: FeasibilityResult | None) -> None:
+    """Copy the CoM regions' margins [m] (NaN when empty or not computed)."""
+    for name in ('feasible_region', 'support_region', 'fwp_region'):
+        region = None if result is None else getattr(result, name, None)
+        margin = math.nan if region is None else region.margin
+        setattr(msg, f'{name}_margin', float(margin))
+    cp = None if result is None else getattr(result, 'capture_point_margin', None)
+    msg.capture_point_margin = math.nan if cp is None else float(cp)
+
+
+def _set_measured_forces(msg: FeasibilityReport, measured) -> None:
+    """Fill the measured-force summary (NaN / empty without efforts)."""
+    msg.measured_forces = measured is not None
+    if measured is None:
+        msg.slip_foot = ''
+        msg.slip_margin = math.nan
+        msg.torque_ratio = math.nan
+        w = (math.nan,) * 6
+    else:
+        msg.slip_foot = measured.slip_foot
+        msg.slip_margin = float(measured.slip_margin)
+        msg.torque_ratio = float(measured.torque_ratio)
+        w = tuple(float(c) for c in measured.external_wrench)
+    f, t = msg.external_wrench.force, msg.external_wrench.torque
+    f.x, f.y, f.z, t.x, t.y, t.z = w
 
 
 def error_report(header: Header, status: int, reason: str, *, compute_time: float = 0.0
@@ -268,6 +326,10 @@ def error_report(header: Header, status: int, reason: str, *, compute_time: floa
     msg.fws_directional_plus = _NAN6.copy()
     msg.fws_directional_minus = _NAN6.copy()
     msg.feasible = False
+    msg.mass = math.nan
+    msg.com.x = msg.com.y = msg.com.z = math.nan
+    _set_regions(msg, None)
+    _set_measured_forces(msg, None)
     msg.compute_time = float(compute_time)
     return msg
 

@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from awp_ros.errors import InputError
 from awp_ros.soak.probe import Probe, wait_until
 
 __all__ = ['drive', 'driver_command']
@@ -42,6 +43,9 @@ def drive(*, rate_hz: float, duration_s: float, robot: str, namespace: str,
     from awp_ros.gait.generator import generate_gait
     from awp_ros.robot.config import load_config
 
+    send_js, send_c = topics in ('both', 'joint_states'), topics in ('both', 'contacts')
+    if not (send_js or send_c):
+        raise InputError(f"topics must be 'both', 'joint_states' or 'contacts', got {topics!r}")
     samples = generate_gait(load_config(robot))
     names = list(samples.joint_names)
     feet = list(samples.feet)
@@ -52,9 +56,6 @@ def drive(*, rate_hz: float, duration_s: float, robot: str, namespace: str,
     node = rclpy.create_node('awp_soak_driver')
     ns = namespace.rstrip('/')
     qos = Probe.qos(depth)
-    send_js, send_c = topics in ('both', 'joint_states'), topics in ('both', 'contacts')
-    if not (send_js or send_c):
-        raise ValueError(f"topics must be 'both', 'joint_states' or 'contacts', got {topics!r}")
     js_pub = node.create_publisher(JointState, f'{ns}/joint_states', qos) if send_js else None
     c_pub = node.create_publisher(ContactState, f'{ns}/contacts', qos) if send_c else None
     pubs = [p for p in (js_pub, c_pub) if p is not None]

@@ -47,6 +47,7 @@ import time
 
 import numpy as np
 
+from awp_ros.errors import ProcessError
 from awp_ros.node.launcher import ros_env, start_node, stop_node
 from awp_ros.soak.driver import drive, driver_command
 from awp_ros.soak.monitor import ProcessMonitor
@@ -150,7 +151,7 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
         t_end = time.monotonic()
         lines = [ln for ln in out.splitlines() if ln.startswith('{')]
         if driver.returncode != 0 or not lines:
-            raise RuntimeError(f'the driver failed (exit {driver.returncode}): {out[-2000:]}')
+            raise ProcessError(f'the driver failed (exit {driver.returncode}): {out[-2000:]}')
         result.driver = json.loads(lines[-1])
         sent = np.load(stamps_file.name)
         result.sent = int(sent.size)

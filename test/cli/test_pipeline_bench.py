@@ -1,7 +1,16 @@
-"""pipeline_bench: the per-joint-state timing of the pipeline over a bag adds up."""
+"""
+pipeline_bench: what it measures over a bag, checked against the bag and the clock.
+
+The counts are checked against the gait the bag was written from (joint states, stance
+sizes) and against the FWS schedule documented in :mod:`awp_ros.ros.pipeline`, computed here
+from the stamps and stance changes alone; the timings are checked for what a measurement
+must satisfy (non-negative, nested stages within the wall time that contains them), never
+for a value: the machine is shared.
+"""
 
 from __future__ import annotations
 
+from collections import Counter
 import json
 import subprocess
 import sys
@@ -10,32 +19,100 @@ import pytest
 
 from awp_ros.cli.pipeline_bench import time_pipeline
 from awp_ros.evaluation.evaluator import STAGES
-from awp_ros.gait.bag import write_gait_bag
+from awp_ros.gait.bag import DEFAULT_START_NS, write_gait_bag
 from awp_ros.gait.generator import GaitParams, generate_gait
-from awp_ros.robot.config import load_config
+from awp_ros.robot.config import load_config, load_parameters
+from awp_ros.ros.pipeline_params import PipelineParams
 
 
 @pytest.fixture(scope='module')
-def trot_bag(tmp_path_factory):
+def trot(tmp_path_factory):
     gait = generate_gait(load_config('hyq'), GaitParams(
         sequence=('trot',), trot_cycles=1, stand_s=0.2, trot_ramp_s=0.2))
-    return write_gait_bag(gait, tmp_path_factory.mktemp('bags') / 'trot.mcap')
+    return gait, write_gait_bag(gait, tmp_path_factory.mktemp('bags') / 'trot.mcap')
 
 
-def test_timings_add_up_and_count_every_joint_state(trot_bag):
-    out = time_pipeline(str(trot_bag), 'hyq', repeat=1)
-    assert out['joint_states'] > 100
-    parts = sum(out[f'{s}_ms'] for s in STAGES) + out['fws_amortised_ms'] + out['rest_ms']
-    assert parts == pytest.approx(out['mean_ms'], rel=1e-9)
-    assert all(out[f'{s}_ms'] > 0.0 for s in STAGES) and out['rest_ms'] > 0.0
-    # Standing (4 legs) and the trot's 2-leg phases; the FWS at least at every stance change.
-    assert set(out['mean_ms_by_stance_legs']) == {2, 4}
-    assert out['fws_computed'] >= 3
+def due_fws(stamps, stances, rate_hz: float) -> list[int]:
+    """
+    Return the stamps at which the FWS is due, by the documented schedule.
+
+    Due at the first joint state, when a period has passed since the schedule's last due
+    time (the schedule then moves on by whole periods, or restarts after a gap of more than
+    one), and whenever the stance set differs from the one of the latest FWS (which restarts
+    the schedule: the next one a period later). Rate 0: every joint state.
+    """
+    if rate_hz == 0.0:
+        return list(stamps)
+    period = int(round(1e9 / rate_hz))
+    out, next_due, fws_stance = [], None, None
+    for ns, stance in zip(stamps, stances):
+        if next_due is None or ns >= next_due:
+            out.append(ns)
+            on_grid = next_due is not None and ns < next_due + period
+            next_due = next_due + period if on_grid else ns + period
+            fws_stance = stance
+        elif stance != fws_stance:
+            out.append(ns)
+            next_due = ns + period
+            fws_stance = stance
+    return out
 
 
-def test_cli_prints_a_table_and_one_json_line(trot_bag):
-    proc = subprocess.run([sys.executable, '-m', 'awp_ros.cli.pipeline_bench', str(trot_bag),
-                           '--repeat', '1'], capture_output=True, text=True, timeout=120)
+def test_due_fws_schedule_by_hand():
+    ms = 10**6
+    stamps = [i * 10 * ms for i in range(25)]             # 100 Hz for 240 ms
+    stances = ['a'] * 12 + ['b'] * 13                     # a change at 120 ms
+    # 10 Hz: 0, 100; the change at 120 restarts: 220.
+    assert due_fws(stamps, stances, 10.0) == [0, 100 * ms, 120 * ms, 220 * ms]
+    assert due_fws(stamps, stances, 0.0) == stamps
+
+
+def test_counts_match_the_bag_and_timings_nest_within_the_wall_time(trot):
+    gait, bag = trot
+    out = time_pipeline(str(bag), 'hyq', repeat=1)
+    n = len(gait)
+    stamps = [DEFAULT_START_NS + int(round(float(t) * 1e9)) for t in gait.t]
+    stances = [tuple(bool(x) for x in row) for row in gait.stance]
+    legs = Counter(sum(s) for s in stances)
+    params, _ = load_parameters('hyq')
+    rate = PipelineParams.from_dict(params).fws_rate_hz
+    assert rate > 0.0 and len(set(stances)) >= 3          # the schedule is exercised
+    # Every joint state of the bag is timed once; the FWS exactly when due.
+    assert out['joint_states'] == n
+    expected = due_fws(stamps, stances, rate)
+    assert len(set(stances)) - 1 < len(expected) < n
+    assert out['fws_computed'] == len(expected)
+    # Stance sizes are those of the gait, and the means by stance size are means of a
+    # partition of the joint states with the gait's counts.
+    assert set(out['mean_ms_by_stance_legs']) == set(legs) == {2, 4}
+    weighted = sum(legs[k] * v for k, v in out['mean_ms_by_stance_legs'].items()) / n
+    assert weighted == pytest.approx(out['mean_ms'], rel=1e-9)
+    # Timings: each stage is a measured duration inside on_joint_state, so every stage
+    # mean is >= 0 and their sum (with the FWS) cannot exceed the wall time containing it.
+    stage_means = [out[f'{s}_ms'] for s in STAGES]
+    assert all(v >= 0.0 for v in stage_means)
+    for s in ('model', 'force_polytopes', 'awp', 'cwc_fwp', 'margins'):
+        assert out[f'{s}_ms'] > 0.0, s                   # real work in every cycle
+    assert out['fws_amortised_ms'] > 0.0
+    assert sum(stage_means) + out['fws_amortised_ms'] <= out['mean_ms']
+    assert 0.0 <= out['rest_ms'] <= out['mean_ms']
+    assert 0.0 < out['p50_ms'] and min(out['mean_ms_by_stance_legs'].values()) > 0.0
+
+
+def test_cli_prints_a_table_and_one_json_line(trot):
+    gait, bag = trot
+    proc = subprocess.run([sys.executable, '-m', 'awp_ros.cli.pipeline_bench', str(bag),
+                           '--repeat', '2'], capture_output=True, text=True, timeout=180)
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.strip().splitlines()
-    assert 'ms mean' in lines[0] and json.loads(lines[-1])['joint_states'] > 100
+    out = json.loads(lines[-1])
+    assert lines[0].startswith(f'{len(gait)} joint states: ') and 'ms mean' in lines[0]
+    assert f'FWS computed {out["fws_computed"]} times' in lines[0]
+    # The timed (last) pass starts after a stamp that went back: its schedule is the same.
+    assert out['joint_states'] == len(gait)
+    stamps = [DEFAULT_START_NS + int(round(float(t) * 1e9)) for t in gait.t]
+    stances = [tuple(bool(x) for x in row) for row in gait.stance]
+    rate = PipelineParams.from_dict(load_parameters('hyq')[0]).fws_rate_hz
+    assert out['fws_computed'] == len(due_fws(stamps, stances, rate))
+    for s in STAGES:
+        assert any(line.split()[0] == s for line in lines[1:-1]), s

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 import json
+import time
 
 import numpy as np
 import pinocchio as pin
@@ -11,7 +12,7 @@ import pytest
 from scipy.optimize import linprog
 
 from awp_ros.errors import InputError
-from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+from awp_ros.evaluation.evaluator import FeasibilityEvaluator, STAGES
 from awp_ros.evaluation.result import AXES
 from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.robot.model import resolve_urdf
@@ -60,10 +61,17 @@ def reference_legs(ev, state):
     q[3:7] = state.base_orientation
     for j in range(2, model.njoints):
         q[model.joints[j].idx_q] = state.joint_positions[model.names[j]]
-    a = np.zeros(model.nv)
-    if state.base_acceleration is not None:      # no twist: spatial = classical
+    v, a = np.zeros(model.nv), np.zeros(model.nv)
+    if state.base_twist is not None:
+        v[:6] = state.base_twist
+    for j in range(2, model.njoints):
+        name, i = model.names[j], model.joints[j].idx_v
+        v[i] = (state.joint_velocities or {}).get(name, 0.0)
+        a[i] = (state.joint_accelerations or {}).get(name, 0.0)
+    if state.base_acceleration is not None:      # classical (None: zero) -> spatial
         a[:6] = state.base_acceleration
-    tau = pin.rnea(model, data, q, np.zeros(model.nv), a)
+    a[:3] -= np.cross(v[3:6], v[:3])
+    tau = pin.rnea(model, data, q, v, a)
     com = pin.centerOfMass(model, data, q)
     pin.computeJointJacobians(model, data, q)
     pin.framesForwardKinematics(model, data, q)
@@ -90,6 +98,14 @@ def pyramid(n, mu, sides):
     return np.vstack([rows, -n])
 
 
+def contact_of(ev, state, foot):
+    """Return the unit normal and mu of ``foot``: the state's own, else the defaults."""
+    n = np.asarray(state.normals.get(foot, ev.config.contact_normal), dtype=float)
+    mu = state.friction_coefficient
+    mu = ev.config.friction_coefficient if mu is None else mu
+    return n / np.linalg.norm(n), float(state.friction_coefficients.get(foot, mu))
+
+
 def lift(p):
     return np.vstack([np.eye(3), np.array([[0, -p[2], p[1]], [p[2], 0, -p[0]],
                                            [-p[1], p[0], 0]])])
@@ -107,8 +123,9 @@ def wrench_lp(ev, state, kind, *, w=None, direction=None, line=None):
     """
     p, J, bias = reference_legs(ev, state)
     K = len(J)
-    lo = [ev.model.legs[f].tau_min for f in ev.feet if f in (state.stance or ev.feet)]
-    hi = [ev.model.legs[f].tau_max for f in ev.feet if f in (state.stance or ev.feet)]
+    stance = [f for f in ev.feet if f in (state.stance or ev.feet)]
+    lo = [ev.model.legs[f].tau_min for f in stance]
+    hi = [ev.model.legs[f].tau_max for f in stance]
     L = np.hstack([lift(pk) for pk in p])                     # (6, 3K)
     torque_A = np.zeros((0, 3 * K))
     torque_b = np.zeros(0)
@@ -120,7 +137,8 @@ def wrench_lp(ev, state, kind, *, w=None, direction=None, line=None):
         blk[nk:, 3 * k:3 * k + 3] = -J[k].T
         torque_A = np.vstack([torque_A, blk])
         torque_b = np.concatenate([torque_b, bias[k] - lo[k], hi[k] - bias[k]])
-        rows = pyramid(np.array([0.0, 0.0, 1.0]), ev.config.friction_coefficient, 4)
+        normal, mu = contact_of(ev, state, stance[k])
+        rows = pyramid(normal, mu, ev.config.pyramid_sides)
         blk = np.zeros((rows.shape[0], 3 * K))
         blk[:, 3 * k:3 * k + 3] = rows
         fric_A = np.vstack([fric_A, blk])
@@ -214,7 +232,9 @@ def test_stance_of_zero_to_four_legs(hyq):
         if K < 3:
             assert r.awp.affine_residual > 1.0 and not r.feasible
         if K == 0:
-            assert r.awp.margin == 0.0
+            # The point set {0}: in its hull at the point, off it by |w| (minus the distance).
+            assert r.awp.margin_in_hull == 0.0
+            assert r.awp.margin == pytest.approx(-np.linalg.norm(r.wrench))
             assert r.awp.affine_residual == pytest.approx(np.linalg.norm(r.wrench))
     assert dims == [[0] * 3, [3] * 3, [5] * 3, [6] * 3, [6] * 3]
 
@@ -240,6 +260,27 @@ def test_vertices_respect_torque_limits_and_friction(hyq):
             assert np.all(sat.sum(axis=1) == 3)
             rows = pyramid(leg.normal, leg.friction_coefficient, 4)
             assert np.all(leg.friction_polytope.vertices @ rows.T <= 1e-7)
+
+
+def test_joint_and_base_velocities_enter_the_bias_torques(hyq):
+    # Coriolis and centrifugal torques b(q, v) move every force polytope: its vertices are
+    # the corners of the torque box through the reference bias (Pinocchio, with v).
+    rng = np.random.default_rng(21)
+    st = perturbed(hyq, rng, spread=0.1)
+    st.joint_velocities = {n: rng.uniform(-6.0, 6.0) for n in hyq.model.joint_names}
+    st.base_twist = [0.3, -0.2, 0.1, 0.8, -0.6, 1.2]
+    r = hyq.evaluate(st, fws=False)
+    _, J, bias = reference_legs(hyq, st)
+    still = replace(st, joint_velocities=None, base_twist=None)
+    _, _, bias0 = reference_legs(hyq, still)
+    assert max(np.max(np.abs(b - b0)) for b, b0 in zip(bias, bias0)) > 1.0
+    for k, (foot, leg) in enumerate(r.legs.items()):
+        info = hyq.model.legs[foot]
+        tau = bias[k] - leg.force_polytope.vertices @ J[k]
+        sat = np.isclose(np.abs(tau), info.tau_max, atol=1e-7 * np.max(info.tau_max))
+        assert np.all(sat.sum(axis=1) == 3), foot
+    h = wrench_lp(hyq, st, 'awp', direction=r.awp.normal)
+    assert h == pytest.approx(r.awp.normal @ r.wrench + r.awp.margin, rel=1e-7, abs=1e-6)
 
 
 def test_membership_and_margins_against_linear_programs(hyq):
@@ -270,6 +311,54 @@ def test_membership_and_margins_against_linear_programs(hyq):
                     assert inside == wrench_lp(hyq, st, name, w=x), name
                     counts[2 + inside] += 1
     assert min(counts) >= 2          # both signs of margins, both membership answers
+
+
+@pytest.mark.parametrize('K', range(5))
+def test_feasible_exactly_when_the_signed_margin_is_not_below_minus_the_tolerance(hyq, K):
+    """
+    Check, for 0-4 stance legs, that the signed margin says the set membership of an LP.
+
+    ``*_feasible`` is ``*_margin >= -tol`` for AWP, FWP and FWS; the margin is negative
+    whenever the LP on the definition says the wrench is not in the set (off a flat set's
+    affine hull included), positive only when it is.
+    """
+    rng = np.random.default_rng(40 + K)
+    tol = hyq.feasibility_tol
+    stance = hyq.feet[:K]
+    st = perturbed(hyq, rng, spread=0.05, stance=stance)
+    base = hyq.evaluate(st)
+    seen = set()
+    for trial in range(14):
+        if trial == 0:
+            w = base.wrench
+        else:
+            name = ('awp', 'fwp', 'fws')[trial % 3]
+            P = getattr(base, name).polytope
+            x = P.hull_origin.copy()
+            if P.hull_basis.shape[1]:
+                u = P.hull_basis @ rng.normal(size=P.hull_basis.shape[1])
+                u /= np.linalg.norm(u)
+                rate = P.A @ u
+                reach = float(np.min((P.b - P.A @ x)[rate > 1e-12] / rate[rate > 1e-12]))
+                x += u * rng.uniform(0.2, 1.8) * reach          # inside or outside the set
+            if trial % 2:                                  # off the affine hull (if flat)
+                x += rng.normal(size=6) * rng.uniform(0.0, 30.0)
+            w = x
+        r = hyq.evaluate(st, wrench=w)
+        for name in ('awp', 'fwp', 'fws'):
+            res = getattr(r, name)
+            assert res.feasible == (res.margin >= -tol), (name, res)
+            if abs(res.margin) < 1e-4:                     # on the boundary: no verdict
+                continue
+            # No stance leg: no contact force, so only the zero wrench (definition).
+            member = wrench_lp(hyq, st, name, w=w) if K else bool(np.linalg.norm(w) < 1e-9)
+            assert member == (res.margin > 0), (K, name, res.margin, res.affine_residual)
+            assert res.margin_in_hull >= res.margin - 1e-9
+            seen.add((name, member))
+    # Every set was seen with wrenches inside and outside (3+ legs; flat sets: outside mostly).
+    assert {('awp', False), ('fwp', False), ('fws', False)} <= seen
+    if K >= 3:
+        assert {('awp', True), ('fwp', True), ('fws', True)} <= seen
 
 
 def test_fws_directional_margins_are_exact_lps(hyq):
@@ -409,10 +498,28 @@ def test_add_fws_matches_evaluate_with_fws(hyq):
     assert {'fws', 'fws_directional', 'fws_margin'} <= set(b.timings_ms)
     # 'total' is the per-cycle evaluation: its stages and glue, never the FWS stages.
     assert b.timings_ms['total'] == per_cycle['total']
-    stages = ('validate', 'model', 'force_polytopes', 'friction_polytopes', 'awp', 'cwc_fwp',
-              'margins')
-    assert set(per_cycle) == set(stages) | {'total'}
-    assert sum(per_cycle[s] for s in stages) == pytest.approx(per_cycle['total'], rel=1e-9)
+    assert set(per_cycle) == set(STAGES) | {'total'}
+
+
+def test_timings_are_measured_durations_within_the_call(hyq):
+    # Not "the stages add up" (true by construction): each stage and 'total' is a duration
+    # [ms] measured inside the call, so it is >= 0 and within the call's wall time measured
+    # here; 'total' holds every stage; the FWS stages fit in the add_fws call.
+    st = hyq.standing_state()
+    for _ in range(3):
+        t0 = time.perf_counter()
+        r = hyq.evaluate(st, fws=False)
+        wall = 1e3 * (time.perf_counter() - t0)
+        tm = r.timings_ms
+        assert all(tm[s] >= 0.0 for s in STAGES)
+        assert max(tm[s] for s in STAGES) <= tm['total'] <= wall
+        assert sum(tm[s] for s in STAGES) <= wall
+        assert tm['model'] > 0.0 and tm['force_polytopes'] > 0.0 and tm['awp'] > 0.0
+        t0 = time.perf_counter()
+        hyq.add_fws(r)
+        wall = 1e3 * (time.perf_counter() - t0)
+        fws = [tm[k] for k in ('fws', 'fws_directional', 'fws_margin')]
+        assert min(fws) >= 0.0 and sum(fws) <= wall and fws[0] > 0.0
 
 
 def test_evaluator_accepts_a_config_name_or_object():
@@ -478,3 +585,231 @@ def test_legs_that_cannot_push_are_warned_and_friction_polytopes_come_on_use(hyq
                      bounds=[(None, None)] * 3, method='highs')
         assert lp.status == 2 and leg.friction_polytope.is_empty
         assert any(f'leg {foot!r} cannot push' in w for w in r.warnings)
+
+
+# -- per-foot contacts and pyramid sides, end to end against LPs on the definitions ---------
+
+
+def tilted(axis, angle):
+    """Return the world z axis rotated by ``angle`` [rad] about ``axis``."""
+    R = pin.AngleAxis(angle, np.asarray(axis, dtype=float) / np.linalg.norm(axis))
+    return (R.toRotationMatrix() @ [0.0, 0.0, 1.0]).tolist()
+
+
+def leg_lp(ev, state, k, *, direction=None, point=None, friction=True):
+    """
+    LP on one stance leg's definition: tau_min <= b - J^T f <= tau_max (and the pyramid).
+
+    With ``direction``: return max direction . f; with ``point``: return membership.
+    """
+    p, J, bias = reference_legs(ev, state)
+    foot = [f for f in ev.feet if f in (state.stance or ev.feet)][k]
+    info = ev.model.legs[foot]
+    A = np.vstack([J[k].T, -J[k].T])
+    b = np.concatenate([bias[k] - info.tau_min, info.tau_max - bias[k]])
+    if friction:
+        normal, mu = contact_of(ev, state, foot)
+        rows = pyramid(normal, mu, ev.config.pyramid_sides)
+        A, b = np.vstack([A, rows]), np.concatenate([b, np.zeros(len(rows))])
+    if point is not None:
+        res = linprog(np.zeros(3), A_ub=A, b_ub=b, A_eq=np.eye(3), b_eq=point,
+                      bounds=[(None, None)] * 3, method='highs')
+        return res.status == 0
+    res = linprog(-np.asarray(direction), A_ub=A, b_ub=b, bounds=[(None, None)] * 3,
+                  method='highs')
+    assert res.status == 0
+    return -res.fun
+
+
+def cwc_lp(ev, state, a):
+    """Return max a . sum_k L_k f_k over f_k in the pyramids (0, or inf when unbounded)."""
+    p, _, _ = reference_legs(ev, state)
+    stance = [f for f in ev.feet if f in (state.stance or ev.feet)]
+    K = len(stance)
+    A = np.zeros((0, 3 * K))
+    for k, foot in enumerate(stance):
+        rows = pyramid(*contact_of(ev, state, foot), ev.config.pyramid_sides)
+        blk = np.zeros((len(rows), 3 * K))
+        blk[:, 3 * k:3 * k + 3] = rows
+        A = np.vstack([A, blk])
+    L = np.hstack([lift(pk) for pk in p])
+    res = linprog(-(a @ L), A_ub=A, b_ub=np.zeros(len(A)), bounds=[(None, None)] * 3 * K,
+                  method='highs')
+    return np.inf if res.status == 3 else -res.fun
+
+
+def check_sets_against_lps(ev, st, r, rng, *, n_dirs=6):
+    """
+    Check the friction-bounded polytopes, the CWC rows of the FWP, FWP and FWS by LPs.
+
+    Returns the support values of each set, for the sensitivity checks of the callers.
+    """
+    supports = {}
+    for k, leg in enumerate(r.legs.values()):
+        Q = leg.friction_polytope
+        assert Q.dimension == 3
+        D = rng.normal(size=(n_dirs, 3))
+        h = np.max(D @ Q.vertices.T, axis=1)
+        ref = np.array([leg_lp(ev, st, k, direction=d) for d in D])
+        np.testing.assert_allclose(h, ref, rtol=1e-7, atol=1e-6)
+        supports[leg.foot] = ref
+        c = Q.vertices.mean(axis=0)
+        spread = np.ptp(Q.vertices, axis=0).max()
+        for x in c + rng.normal(size=(8, 3)) * 0.4 * spread:
+            if np.min(np.abs(Q.b - Q.A @ x)) > 1e-6 * spread:
+                assert bool(np.all(Q.A @ x <= Q.b)) == leg_lp(ev, st, k, point=x)
+    # Rows of the FWP taken from the CWC are valid for the cone the LP defines (a . w <= 0)
+    # and support it (some lifted pyramid force reaches a . w = 0 from below).
+    P = r.fwp.polytope
+    rows = P.A[P.meta['source'] == 1]
+    assert len(rows) > 0
+    for a in rows[rng.choice(len(rows), size=min(6, len(rows)), replace=False)]:
+        assert cwc_lp(ev, st, a) == pytest.approx(0.0, abs=1e-6)
+    for name in ('awp', 'fwp', 'fws'):
+        res = getattr(r, name)
+        P = res.polytope
+        D = rng.normal(size=(n_dirs, 6)) @ P.hull_basis @ P.hull_basis.T
+        ref = np.array([wrench_lp(ev, st, name, direction=d) for d in D])
+        # Support of the H-rep set, from its rows (LP over the set itself).
+        h = []
+        for d in D:
+            lp = linprog(-d, A_ub=P.A, b_ub=P.b, A_eq=np.eye(6) - P.hull_basis @ P.hull_basis.T,
+                         b_eq=(np.eye(6) - P.hull_basis @ P.hull_basis.T) @ P.hull_origin,
+                         bounds=[(None, None)] * 6, method='highs')
+            assert lp.status == 0
+            h.append(-lp.fun)
+        np.testing.assert_allclose(h, ref, rtol=1e-6, atol=1e-5)
+        supports[name] = ref
+        assert wrench_lp(ev, st, name, direction=res.normal) == pytest.approx(
+            res.normal @ r.wrench + res.margin, rel=1e-7, abs=1e-6)
+        scale = abs(res.margin) + 50.0
+        x0 = P.hull_origin + (r.wrench - P.hull_origin) * (res.affine_residual < 1e-9)
+        for _ in range(6):
+            u = P.hull_basis @ rng.normal(size=P.hull_basis.shape[1])
+            x = x0 + u / np.linalg.norm(u) * rng.uniform(0.5, 2.0) * scale
+            if np.min(np.abs(P.b - P.A @ x)) > 1e-5:
+                assert bool(np.all(P.A @ x <= P.b + 1e-7)) == wrench_lp(ev, st, name, w=x)
+    return supports
+
+
+CONTACTS = {
+    'normals': {'lf_foot': tilted([1.0, 0.0, 0.0], 0.35),
+                'rf_foot': tilted([0.0, 1.0, 0.0], -0.3),
+                'lh_foot': tilted([1.0, -1.0, 0.0], 0.4)},     # rh_foot: the default
+    'friction_coefficients': {'lf_foot': 0.4, 'rf_foot': 1.0, 'lh_foot': 0.55},
+    'friction_coefficient': 0.8,                                # rh_foot's
+}
+
+
+@pytest.mark.parametrize('stance', [None, ['lf_foot', 'rf_foot', 'lh_foot']])
+def test_per_foot_tilted_normals_and_mu_reach_every_set(hyq, stance):
+    rng = np.random.default_rng(11)
+    st = hyq.standing_state(stance=stance, **CONTACTS)
+    r = hyq.evaluate(st)
+    for foot, leg in r.legs.items():
+        normal, mu = contact_of(hyq, st, foot)
+        np.testing.assert_allclose(leg.normal, normal, atol=1e-15)
+        assert leg.friction_coefficient == mu
+    supports = check_sets_against_lps(hyq, st, r, np.random.default_rng(11))
+    # The contacts matter: the same LPs with the default normal and mu give other supports
+    # (so an evaluator ignoring the per-foot normal or mu would fail the checks above).
+    plain = hyq.standing_state(stance=stance)
+    rng = np.random.default_rng(11)
+    for k, foot in enumerate(r.legs):
+        D = rng.normal(size=(6, 3))
+        default = np.array([leg_lp(hyq, plain, k, direction=d) for d in D])
+        if foot != 'rh_foot':
+            assert np.max(np.abs(default - supports[foot])) > 1.0, foot
+        rng.normal(size=(8, 3))
+    for name in ('fwp', 'fws'):
+        D = rng.normal(size=(4, 6))
+        assert max(abs(wrench_lp(hyq, plain, name, direction=d)
+                       - wrench_lp(hyq, st, name, direction=d)) for d in D) > 1.0, name
+
+
+@pytest.fixture(scope='module')
+def by_sides():
+    return {N: FeasibilityEvaluator(replace(load_config('hyq'), pyramid_sides=N))
+            for N in (3, 4, 6, 8)}
+
+
+@pytest.mark.parametrize('sides', [3, 6, 8])
+def test_pyramid_sides_other_than_four_reach_every_set(by_sides, sides):
+    ev = by_sides[sides]
+    assert ev.config.pyramid_sides == sides
+    st = ev.standing_state(**CONTACTS)
+    r = ev.evaluate(st)
+    supports = check_sets_against_lps(ev, st, r, np.random.default_rng(sides), n_dirs=4)
+    # Sensitivity: the 4-sided pyramid gives other supports.
+    four = by_sides[4].evaluate(st)
+    for name in ('fwp', 'fws'):
+        res = getattr(r, name)
+        assert abs(getattr(four, name).margin - res.margin) > 1e-3, name
+    rng = np.random.default_rng(sides)
+    foot = next(iter(r.legs))
+    D = rng.normal(size=(4, 3))
+    h4 = np.max(D @ four.legs[foot].friction_polytope.vertices.T, axis=1)
+    assert np.max(np.abs(h4 - supports[foot])) > 1.0
+    # Pyramid facets with N sides: every friction-bounded vertex satisfies them, and N + 1
+    # rows (N facets and n . f >= 0) are tight at the apex.
+    for foot, leg in r.legs.items():
+        rows = pyramid(*contact_of(ev, st, foot), sides)
+        assert np.all(leg.friction_polytope.vertices @ rows.T <= 1e-7)
+
+
+# -- the FWS directional margins, by LP on the vertex definition ------------------------------
+
+
+def directional_lp(result, axis: int, sign: float) -> float:
+    """
+    Return max t with w + sign t e_axis in sum_k L_k conv(V_k) (NaN when the line misses).
+
+    Variables: barycentric weights lam_k >= 0, 1^T lam_k = 1, per leg, and t.
+    """
+    legs = list(result.legs.values())
+    V = [leg.friction_polytope.vertices for leg in legs]
+    cols = [lift(leg.position) @ v.T for leg, v in zip(legs, V)]
+    n = sum(v.shape[0] for v in V)
+    e = np.zeros(6)
+    e[axis] = sign
+    A_eq = np.zeros((6 + len(V), n + 1))
+    A_eq[:6, :n] = np.hstack(cols)
+    A_eq[:6, n] = -e
+    start = 0
+    for k, v in enumerate(V):
+        A_eq[6 + k, start:start + v.shape[0]] = 1.0
+        start += v.shape[0]
+    b_eq = np.concatenate([result.wrench, np.ones(len(V))])
+    c = np.zeros(n + 1)
+    c[-1] = -1.0
+    res = linprog(c, A_eq=A_eq, b_eq=b_eq, bounds=[(0, None)] * n + [(None, None)],
+                  method='highs')
+    if res.status == 2:
+        return np.nan
+    assert res.status == 0
+    return -res.fun
+
+
+@pytest.mark.parametrize('case', ['standing', 'lunge', 'tilted', 'two_legs', 'three_legs'])
+def test_fws_directional_margins_equal_an_lp_on_the_definition(hyq, case):
+    kw = {'standing': {}, 'tilted': CONTACTS, 'two_legs': {'stance': ['lf_foot', 'rh_foot']},
+          'three_legs': {'stance': ['lf_foot', 'rf_foot', 'rh_foot']},
+          'lunge': {'base_acceleration': [9.0, 0.0, 0.0, 0.0, 0.0, 0.0]}}[case]
+    st = hyq.standing_state(**kw)
+    r = hyq.evaluate(st)
+    values = []
+    for i, axis in enumerate(AXES):
+        plus, minus = r.fws.directional[axis]
+        ref_plus, ref_minus = directional_lp(r, i, 1.0), directional_lp(r, i, -1.0)
+        for got, ref in ((plus, ref_plus), (minus, ref_minus)):
+            if np.isnan(ref):
+                assert np.isnan(got), (axis, got)
+            else:
+                assert got == pytest.approx(ref, rel=1e-6, abs=1e-5), axis
+                values.append(ref)
+    # Not vacuous: finite values on every case, signs as the case says.
+    assert values
+    if case in ('standing', 'tilted', 'three_legs'):
+        assert r.fws.feasible and min(values) > 0.0
+    if case == 'lunge':
+        assert not r.fws.feasible and min(values) < 0.0

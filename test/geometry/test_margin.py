@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.optimize import linprog
+from scipy.optimize import linprog, nnls
 from scipy.spatial import ConvexHull
 
 from awp_ros.errors import InputError
@@ -57,6 +57,19 @@ def lp_contains(P: Polytope, x: np.ndarray, tol: float = 1e-7) -> bool:
     return res.status == 0 and res.fun <= tol
 
 
+def hull_distance(V: np.ndarray, w: np.ndarray) -> float:
+    """
+    Return the distance from ``w`` to conv(V): NNLS over convex weights.
+
+    ``min |V^T lam - w|`` over ``lam >= 0`` with ``sum(lam) = 1`` enforced by a heavily
+    weighted extra row (its error is below 1e-9 of the scale here).
+    """
+    scale = 1e6 * (1.0 + float(np.max(np.abs(V))))
+    E = np.vstack([V.T, np.full(V.shape[0], scale)])
+    lam, _ = nnls(E, np.concatenate([w, [scale]]), maxiter=10000)
+    return float(np.linalg.norm(V.T @ lam - w))
+
+
 def test_cube_inside_is_distance_to_nearest_face():
     m = polytope_margin(unit_cube(), [0.5, 0.5, 0.2])
     assert m.margin == pytest.approx(0.2)
@@ -79,17 +92,26 @@ def test_flat_square_reports_residual_and_margin_in_hull():
     m = polytope_margin(P, [0.5, 0.25, 3.0])
     assert m.dimension == 2
     assert m.affine_residual == pytest.approx(2.0)
-    assert m.margin == pytest.approx(0.25)
-    np.testing.assert_allclose(m.normal, [0, -1, 0], atol=1e-12)
+    assert m.margin_in_hull == pytest.approx(0.25)
+    assert m.margin == pytest.approx(-2.0)            # off the hull: minus the distance
+    np.testing.assert_allclose(m.normal, [0, 0, 1], atol=1e-12)
     assert not m.feasible
+    # Off the hull and outside the square in it: the distance has both parts (by hand).
+    out = polytope_margin(P, [1.3, 0.5, 1.4])
+    assert out.margin == pytest.approx(-0.5) and out.margin_in_hull == pytest.approx(-0.3)
+    np.testing.assert_allclose(out.normal, [0.6, 0, 0.8], atol=1e-12)
     assert polytope_margin(P, [0.5, 0.25, 1.0 + 1e-8]).feasible
+    # A hull tolerance accepts a small residual, keeping the in-hull margin.
+    tol = polytope_margin(P, [0.5, 0.25, 1.1], hull_tol=0.2)
+    assert tol.feasible and tol.margin == pytest.approx(0.25)
+    assert not polytope_margin(P, [0.5, 0.25, 1.3], hull_tol=0.2).feasible
 
 
 def test_point_set_margin_zero_residual_distance():
     P = Polytope(0, np.array([[1.0, 2, 3]]), np.zeros((0, 3)), np.zeros(0),
                  np.array([1.0, 2, 3]), np.zeros((3, 0)))
     m = polytope_margin(P, [1.0, 2, 7])
-    assert m.margin == 0.0 and m.dimension == 0
+    assert m.margin == pytest.approx(-4.0) and m.margin_in_hull == 0.0 and m.dimension == 0
     assert m.affine_residual == pytest.approx(4.0)
     assert not m.feasible
     assert polytope_margin(P, [1.0, 2, 3]).feasible
@@ -148,12 +170,19 @@ def test_flat_3d_set_in_6d_matches_its_own_coordinates(seed):
     N = np.linalg.svd(basis)[0][:, 3:]
     for y in rng.normal(size=(8, 3)) * 150:
         off = N @ rng.normal(size=3) * 5
-        m6 = polytope_margin(P6, origin + basis @ y + off)
+        w = origin + basis @ y + off
+        m6 = polytope_margin(P6, w)
         m3 = polytope_margin(P3, y)
-        assert m6.margin == pytest.approx(m3.margin, rel=1e-9, abs=1e-9)
+        assert m6.margin_in_hull == pytest.approx(m3.margin, rel=1e-9, abs=1e-9)
         assert m6.affine_residual == pytest.approx(np.linalg.norm(off))
-        np.testing.assert_allclose(basis.T @ m6.normal, m3.normal, atol=1e-9)
-        assert m6.dimension == 3
+        assert m6.dimension == 3 and not m6.feasible
+        # Signed margin: minus the distance from w to the set, by an independent QP.
+        assert m6.margin == pytest.approx(-hull_distance(origin + pts @ basis.T, w), rel=1e-6)
+        if m3.margin >= 0:
+            np.testing.assert_allclose(m6.normal, off / np.linalg.norm(off), atol=1e-9)
+        m_on = polytope_margin(P6, origin + basis @ y)
+        np.testing.assert_allclose(basis.T @ m_on.normal, m3.normal, atol=1e-9)
+        assert m_on.margin == pytest.approx(m3.margin, rel=1e-9, abs=1e-9)
 
 
 def test_directional_margins_on_cube_by_hand():
