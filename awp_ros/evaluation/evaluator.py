@@ -34,6 +34,7 @@ The result classes live in :mod:`awp_ros.evaluation.result` and are re-exported 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import partial
 import time
 
@@ -46,6 +47,7 @@ from awp_ros.geometry.polytope import Polytope
 from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.robot.model import RobotModel
 from awp_ros.robot.state import resolve_state, RobotState
+from awp_ros.wrench.contact_forces import measured_contact_forces
 from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone
 from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
 from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
@@ -161,6 +163,13 @@ class FeasibilityEvaluator:
             awp, w, feasibility_tol=tol, hull_tol=self.hull_tol))
         fwp_r = WrenchSetResult.from_margin('fwp', fwp, polytope_margin(
             fwp, w, feasibility_tol=tol, hull_tol=self.hull_tol))
+        measured = None
+        if s.tau is not None and s.stance:
+            info = [model.legs[f] for f in s.stance]
+            measured = measured_contact_forces(
+                s.stance, p, kin.J, kin.bias, [s.tau[leg.v_idx - 6] for leg in info],
+                self._friction_rows(s.normals, s.mus), [leg.tau_min for leg in info],
+                [leg.tau_max for leg in info], w)
         legs = {foot: LegResult(foot, p[k], s.normals[k], float(s.mus[k]), forces[k],
                                 partial(frictions.__getitem__, k), forces[k].meta['singular'],
                                 forces[k].meta['near_singular'])
@@ -172,7 +181,8 @@ class FeasibilityEvaluator:
                    'margins': 1e3 * (t7 - t6), 'total': 1e3 * (t7 - t0)}
         result = FeasibilityResult(cfg.robot_name, s.stance, kin.mass, kin.com, w, legs,
                                    awp_r, fwp_r, None, warnings, timings,
-                                   'quasi_static' if s.v is None and s.a is None else 'measured')
+                                   'quasi_static' if s.v is None and s.a is None else 'measured',
+                                   measured)
         if fws:
             self.add_fws(result)
         return result
@@ -210,6 +220,34 @@ class FeasibilityEvaluator:
         tm['fws_directional'] = 1e3 * (t2 - t1)
         tm['fws_margin'] = 1e3 * (t3 - t2)
         return result
+
+    def with_wrench(self, result: FeasibilityResult, wrench: np.ndarray, *,
+                    fws: WrenchSetResult | None = None) -> FeasibilityResult:
+        """
+        Return ``result`` with the margins of another wrench to the same sets.
+
+        :param wrench: ``[f; tau]`` [N, N.m], about the CoM, world-aligned axes (e.g. the
+            centroidal wrench a planner intends).
+        :param fws: the FWS to use (default ``result.fws``; e.g. the latest one computed).
+        :raises InputError: ``wrench`` is not 6 finite numbers.
+        """
+        w = np.asarray(wrench, dtype=float)
+        if w.shape != (6,) or not np.all(np.isfinite(w)):
+            raise InputError(f'wrench must be 6 finite numbers [N, N.m], got {wrench!r}')
+        fws = result.fws if fws is None else fws
+        tol, hull_tol = self.feasibility_tol, self.hull_tol
+
+        def margin(s: WrenchSetResult) -> WrenchSetResult:
+            return WrenchSetResult.from_margin(s.name, s.polytope, polytope_margin(
+                s.polytope, w, feasibility_tol=tol, hull_tol=hull_tol))
+
+        fws_r = None
+        if fws is not None:
+            fws_r = margin(fws)
+            plus, minus = directional_margins(fws.polytope, w, feasibility_tol=tol)
+            fws_r.directional = {a: (float(x), float(y)) for a, x, y in zip(AXES, plus, minus)}
+        return replace(result, wrench=w, awp=margin(result.awp), fwp=margin(result.fwp),
+                       fws=fws_r)
 
     # -- stages ------------------------------------------------------------------------
 

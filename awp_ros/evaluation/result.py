@@ -17,6 +17,7 @@ import numpy as np
 
 from awp_ros.geometry.margin import SetMargin
 from awp_ros.geometry.polytope import Polytope
+from awp_ros.wrench.contact_forces import MeasuredForces
 
 __all__ = ['AXES', 'FeasibilityResult', 'LegResult', 'WrenchSetResult']
 
@@ -136,6 +137,7 @@ class FeasibilityResult:
     FWS) and, once the FWS is computed, ``fws``, ``fws_directional`` and ``fws_margin``.
     ``motion``: ``'measured'`` when the state carried motion (velocities or accelerations:
     the wrench and the leg biases include the dynamics terms), else ``'quasi_static'``.
+    ``measured``: the contact forces from the joint efforts, when the state had efforts.
     """
 
     robot: str
@@ -150,6 +152,7 @@ class FeasibilityResult:
     warnings: list[str]
     timings_ms: dict[str, float]
     motion: str = 'quasi_static'
+    measured: MeasuredForces | None = None
 
     @property
     def status(self) -> str:
@@ -177,11 +180,21 @@ class FeasibilityResult:
             'awp': self.awp.to_dict(halfspaces=halfspaces),
             'fwp': self.fwp.to_dict(halfspaces=halfspaces),
             'fws': None if self.fws is None else self.fws.to_dict(halfspaces=halfspaces),
+            'measured_forces': None if self.measured is None else _measured_dict(self.measured),
             'timings_ms': dict(self.timings_ms),
         }
 
 
 # -- JSON helpers ------------------------------------------------------------------------
+
+
+def _measured_dict(m: MeasuredForces) -> dict:
+    return {'forces': {f: _floats(v) for f, v in m.forces.items()},
+            'slip_margins': {f: _float(v) for f, v in m.slip_margins.items()},
+            'torque_ratios': {f: _float(v) for f, v in m.torque_ratios.items()},
+            'slip_foot': m.slip_foot, 'slip_margin': _float(m.slip_margin),
+            'torque_ratio': _float(m.torque_ratio),
+            'external_wrench': _floats(m.external_wrench)}
 
 
 def _float(x: float) -> float | None:

@@ -1,4 +1,9 @@
-"""``python -m awp_ros.gait``: write a gait bag (default: the committed ``config/hyq_gait.mcap``)."""
+"""
+``python -m awp_ros.gait``: write a gait bag.
+
+With no arguments it regenerates the committed default bag ``config/hyq_gait.mcap``
+byte-for-byte (see :func:`main`).
+"""
 
 from __future__ import annotations
 
@@ -18,12 +23,14 @@ def main(argv: list[str] | None = None) -> int:
     Write a gait bag; with no arguments, regenerate the committed default bag.
 
     ``python -m awp_ros.gait`` rewrites ``config/hyq_gait.mcap`` of the source tree
-    byte-for-byte (HyQ, :class:`GaitParams` defaults, IMU at 100 Hz).
+    byte-for-byte (HyQ, :class:`GaitParams` defaults: crawl, lurch, trot; IMU at 500 Hz,
+    one per joint state).
     """
     default_out = Path(__file__).resolve().parents[2] / 'config' / DEFAULT_BAG_NAME
     parser = argparse.ArgumentParser(
         prog='python -m awp_ros.gait',
-        description='Generate a crawl/trot bag (joint states, contacts, imu) for a quadruped.')
+        description='Generate a crawl/lurch/trot bag (joint states, contacts, imu) for a '
+        'quadruped.')
     parser.add_argument('-o', '--output', default=str(default_out),
                         help='output bag: a .mcap/.db3 file or a rosbag2 directory '
                              '(default: %(default)s)')

@@ -21,6 +21,7 @@ from awp_ros.bags.message_types import CONTACT_STATE, IMU, INPUT_TOPICS, JOINT_S
 from awp_ros.bags.reader import BagMessage
 from awp_ros.bags.writer import BagWriter
 from awp_ros.errors import BagError
+from awp_ros.robot.config import config_dirs, find_config_file
 
 __all__ = ['gait_messages', 'write_gait_bag', 'default_bag_path', 'DEFAULT_START_NS',
            'DEFAULT_BAG_NAME', 'DEFAULT_IMU_RATE_HZ']
@@ -28,8 +29,9 @@ __all__ = ['gait_messages', 'write_gait_bag', 'default_bag_path', 'DEFAULT_START
 #: First stamp of generated bags: 2024-01-01T00:00:00Z [ns]. Fixed for reproducible bytes.
 DEFAULT_START_NS = 1_704_067_200 * 10**9
 DEFAULT_BAG_NAME = 'hyq_gait.mcap'
-#: IMU rate of the default bag [Hz] (joint states and contacts: the gait's 500 Hz).
-DEFAULT_IMU_RATE_HZ = 100.0
+#: IMU rate of the default bag [Hz]: the gait's 500 Hz, one IMU message per joint state (same
+#: stamp), so that an estimator pairing them by stamp never uses a stale IMU sample.
+DEFAULT_IMU_RATE_HZ = 500.0
 
 
 def gait_messages(samples, *, start_ns: int = DEFAULT_START_NS, imu_rate_hz: float | None
@@ -38,7 +40,8 @@ def gait_messages(samples, *, start_ns: int = DEFAULT_START_NS, imu_rate_hz: flo
     Yield the messages of a :class:`~awp_ros.gait.generator.GaitSamples` in log-time order.
 
     Per sample i, stamped ``start_ns + round(t_i * 1e9)``: a ``sensor_msgs/Imu`` (base
-    orientation, angular velocity, specific force; frame = the base link; every
+    orientation, world from base; angular velocity and specific force of the base origin
+    in the base frame; ``frame_id`` = the base link, ``samples.base_frame``; every
     ``rate / imu_rate_hz``-th sample; covariances zero = unknown), an
     ``awp_ros_msgs/ContactState`` (all feet, ``in_contact``; normals and friction
     coefficients left empty = the configured defaults) and a ``sensor_msgs/JointState``
@@ -118,8 +121,6 @@ def default_bag_path() -> Path:
 
     :raises BagError: not found anywhere.
     """
-    from awp_ros.robot.config import config_dirs, find_config_file
-
     found = find_config_file(DEFAULT_BAG_NAME)
     if found is not None:
         return found

@@ -1,29 +1,47 @@
-"""
-The gait generator's plan: where the base and every foot are, in the world, over time.
+r"""
+The gait generator's plan: footholds, swings, the nominal body path and the ZMP windows.
 
 The robot walks straight along world x on flat ground (z = 0, normal +z). The plan is made
 in the world frame (REP 103, z up) from the feet's nominal positions in the standing posture
-(see :mod:`awp_ros.gait.generator` for the gaits). Base positions are in the horizontal plane [m];
-foot positions in 3D [m]; times [s]. The base height, bob and roll are added by
+(see :mod:`awp_ros.gait.generator` for the gaits). Base positions are in the horizontal
+plane [m]; foot positions in 3D [m]; times [s].
+
+The body path of the plan is *kinematic* (minimum-jerk shifts, the trot's speed ramp): it is
+the nominal path that :mod:`awp_ros.gait.balance` turns into a balanced CoM trajectory (its
+ZMP reference is the nominal CoM, ``body + com_offset``, projected where the support needs).
+The plan also places the footholds (each trot foot lands under its hip's nominal mid-stance
+position) and the :class:`ZmpWindow` s, the times where the ZMP is prescribed outside the
+support on purpose (the lurch). The base height, bob and roll are added by
 :func:`awp_ros.gait.generator.generate_gait` from :meth:`GaitPlan.speed_ratio`.
+
+The lurch's recovery holds the ZMP at the capture point that the window leaves: on the
+linear inverted pendulum (:math:`\omega^2 = g / h`, h the standing CoM height), a CoM at
+rest at distance :math:`s_0 = n \cdot c_0 - b` from the ZMP line :math:`n \cdot p = b`
+moves as :math:`s_0 \cosh(\omega t)`, so after the window's T
+
+.. math::
+
+    (11)\quad \xi = b + s_0 e^{\omega T} \quad \text{(along } n\text{)}
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+import math
 
 import numpy as np
 
 from awp_ros.errors import ModelError
 from awp_ros.gait.curves import min_jerk, Piecewise, ramp_distance, smoothstep, swing_foot, whole
 from awp_ros.gait.kinematics import quadrants, standing_geometry
+from awp_ros.gait.params import GaitParams, GRAVITY
 from awp_ros.robot.model import RobotModel
 
-if TYPE_CHECKING:
-    from awp_ros.gait.generator import GaitParams
+__all__ = ['GaitPlan', 'Swing', 'ZmpWindow', 'nearest_inside', 'lurch_edge']
 
-__all__ = ['GaitPlan', 'Swing', 'nearest_inside']
+#: The feet next to each foot (same side, same end) and the diagonally opposite one.
+_NEIGHBOURS = {'lf': ('rf', 'lh'), 'rf': ('lf', 'rh'), 'lh': ('lf', 'rh'), 'rh': ('rf', 'lh')}
+_OPPOSITE = {'lf': 'rh', 'rf': 'lh', 'lh': 'rf', 'rh': 'lf'}
 
 
 @dataclass
@@ -37,17 +55,43 @@ class Swing:
     p1: np.ndarray
 
 
+@dataclass(frozen=True)
+class ZmpWindow:
+    r"""
+    A window ``[t0, t1)`` [s] where the ZMP p is prescribed on a line: :math:`n \cdot p = b`.
+
+    Before it, from ``hold`` [s], the body rests over ``start`` (2,) [m] (ZMP and CoM
+    there); after it, until ``until`` [s], the ZMP catches the body at ``catch`` (2,) [m],
+    the capture point at ``t1`` (equation 11). ``normal`` (2,) unit and ``offset`` b [m]
+    define the line (world xy), ``point`` (2,) [m] is the ZMP reference on it. ``name``
+    labels the window (e.g. 'lurch').
+    """
+
+    name: str
+    hold: float
+    t0: float
+    t1: float
+    until: float
+    start: np.ndarray
+    normal: np.ndarray
+    offset: float
+    point: np.ndarray
+    catch: np.ndarray
+
+
 @dataclass
 class GaitPlan:
-    """The base's horizontal path and the feet's swings of a whole gait sequence."""
+    """The nominal base path, the feet's swings and the ZMP windows of a gait sequence."""
 
     params: GaitParams
     nominal: np.ndarray          # (K, 2) feet xy in the base frame, standing [m]
     com_offset: np.ndarray       # (2,) CoM xy in the base frame, standing [m]
     height: float                # base height above the feet, standing [m]
+    com_height: float            # CoM height above the feet, standing [m]
     body: Piecewise
     swings: list = field(default_factory=list)
     trots: list = field(default_factory=list)    # (t0, t1, ramp) [s] of each trot
+    windows: list = field(default_factory=list)  # ZmpWindow s
     segments: tuple = ()
     n_samples: int = 0
 
@@ -56,7 +100,8 @@ class GaitPlan:
         """Plan ``params.sequence``, each gait preceded and followed by standing."""
         nominal3, com = standing_geometry(model)
         order = quadrants(model.config.feet, nominal3)
-        plan = cls(params, nominal3[:, :2], com[:2], float(-nominal3[:, 2].mean()),
+        height = float(-nominal3[:, 2].mean())
+        plan = cls(params, nominal3[:, :2], com[:2], height, height + float(com[2]),
                    Piecewise(np.zeros(2)))
         feet = nominal3[:, :2].copy()
         t = 0.0
@@ -66,6 +111,8 @@ class GaitPlan:
             t0 = t
             if gait == 'crawl':
                 t = plan._crawl(t, feet, order)
+            elif gait == 'lurch':
+                t = plan._lurch(t, feet, order)
             elif gait == 'trot':
                 t = plan._trot(t, feet, order)
             segments.append((gait, t0, t))
@@ -82,6 +129,13 @@ class GaitPlan:
             self.body.add(t, t1, min_jerk(t, t1, self.body.end.copy(), target))
         return t1
 
+    def _shift(self, t: float, duration: float, com_target: np.ndarray) -> float:
+        """Move the nominal CoM to ``com_target`` (minimum jerk, all feet down)."""
+        target = com_target - self.com_offset
+        self.body.add(t, t + duration, min_jerk(t, t + duration, self.body.end.copy(),
+                                                target))
+        return t + duration
+
     def _crawl(self, t: float, feet: np.ndarray, order: dict) -> float:
         """Plan one static crawl from time ``t`` [s]; update ``feet``; return the end."""
         p = self.params
@@ -92,16 +146,47 @@ class GaitPlan:
             for name in ('lh', 'lf', 'rh', 'rf'):
                 k = order[name]
                 others = [i for i in range(feet.shape[0]) if i != k]
-                com_target = nearest_inside(feet.mean(axis=0), feet[others],
-                                            p.crawl_margin_m)
-                target = com_target - self.com_offset
-                self.body.add(t, t + shift, min_jerk(t, t + shift, self.body.end.copy(),
-                                                     target))
-                t += shift
+                t = self._shift(t, shift, nearest_inside(feet.mean(axis=0), feet[others],
+                                                         p.crawl_margin_m))
                 self.swings.append(Swing(k, t, t + swing, feet[k].copy(), feet[k] + step))
                 feet[k] = feet[k] + step
                 t += swing
         return t
+
+    def _lurch(self, t: float, feet: np.ndarray, order: dict) -> float:
+        """
+        Plan the lurch from time ``t`` [s] (see :func:`lurch_edge`); return its end.
+
+        Shift onto the three other feet (the ZMP ``crawl_margin_m`` inside their triangle),
+        lift ``lurch_foot`` in place for ``lurch_lift_s``; ``lurch_delay_s`` after lift-off
+        the ZMP is prescribed ``lurch_overshoot_m`` beyond the triangle's edge that faces the
+        lifted foot, for ``lurch_s`` (a :class:`ZmpWindow`; shorter on a small robot, see
+        :class:`~awp_ros.gait.params.GaitParams`).
+        """
+        p = self.params
+        k = order[p.lurch_foot]
+        others = [i for i in range(feet.shape[0]) if i != k]
+        start = nearest_inside(feet.mean(axis=0), feet[others], p.crawl_margin_m)
+        t = self._shift(t, whole(p.lurch_shift_s, p.rate_hz), start)
+        lift = whole(p.lurch_lift_s, p.rate_hz)
+        self.swings.append(Swing(k, t, t + lift, feet[k].copy(), feet[k].copy()))
+        normal, offset = lurch_edge(feet, order, p.lurch_foot)
+        b = offset - p.lurch_overshoot_m
+        point = start - (normal @ start - b) * normal
+        # Equation 11 (LIP, omega^2 = g / h): from rest at s_0 = n . start - b off the ZMP
+        # line, after T the capture point is xi = b + s_0 exp(omega T) along the normal;
+        # T is shortened if the CoM would travel more than lurch_travel_ratio * h.
+        omega = math.sqrt(GRAVITY / self.com_height)
+        s0 = float(normal @ start - b)
+        longest = math.log1p(p.lurch_travel_ratio * self.com_height / s0) / omega
+        duration = min(whole(p.lurch_s, p.rate_hz),
+                       max(1.0, math.floor(longest * p.rate_hz)) / p.rate_hz)
+        t0 = whole(t + p.lurch_delay_s, p.rate_hz)
+        t1 = whole(t0 + duration, p.rate_hz)
+        catch = point + s0 * math.exp(omega * duration) * normal
+        self.windows.append(ZmpWindow('lurch', t, t0, t1, t + lift, start, normal, float(b),
+                                      point, catch))
+        return t + lift
 
     def _trot(self, t: float, feet: np.ndarray, order: dict) -> float:
         """Plan a trot from time ``t`` [s]; update ``feet``; return the end."""
@@ -199,3 +284,23 @@ def nearest_inside(point: np.ndarray, vertices: np.ndarray, margin: float, *,
                          f'{margin} m inside; lower crawl_margin_m')
     cand = cand[inside]
     return cand[np.argmin(np.linalg.norm(cand - point, axis=1))]
+
+
+def lurch_edge(feet: np.ndarray, order: dict, foot: str) -> tuple[np.ndarray, float]:
+    r"""
+    Return the support triangle's edge facing a lifted foot: inward normal n and offset b.
+
+    The triangle of the three other feet has its edge through the lifted foot's two
+    neighbours (for 'lf': 'rf' and 'lh', a diagonal); inside is :math:`n \cdot x \ge b`
+    (toward the opposite foot).
+
+    :param feet: (4, >= 2) foot positions, world [m].
+    :param order: quadrant name -> foot index.
+    :param foot: the lifted foot's quadrant ('lf', 'rf', 'lh', 'rh').
+    """
+    a, c = (feet[order[name], :2] for name in _NEIGHBOURS[foot])
+    d = (c - a) / np.linalg.norm(c - a)
+    normal = np.array([-d[1], d[0]])
+    if normal @ (feet[order[_OPPOSITE[foot]], :2] - a) < 0.0:
+        normal = -normal
+    return normal, float(normal @ a)

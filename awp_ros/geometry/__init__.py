@@ -8,7 +8,10 @@ Polytope geometry, ROS-free: H/V-representations, exact Minkowski-sum facets, ma
 - :mod:`zonotope`: H-rep of a zonotope (a sum of segments), e.g. the AWP of 3-joint legs.
 - :mod:`minkowski_facets`: facet normals of a sum of lifted polytopes from face combinations.
 - :mod:`margin`: signed Euclidean margin of a point to a polytope, and directional margins.
+- :mod:`lp`: the Chebyshev-ball LP (the one LP helper).
+- :mod:`mesh`: triangle meshes and force slices of polytopes, for drawing.
+- :mod:`iterative_projection`: Bretl & Lall iterative projection (a baseline).
 """
 
 __all__ = ['polytope', 'linalg', 'exterior', 'face_lattice', 'zonotope', 'minkowski_facets',
-           'margin']
+           'margin', 'lp', 'mesh', 'iterative_projection']

@@ -37,8 +37,11 @@ def chebyshev_ball(A: np.ndarray, b: np.ndarray, *, max_radius: float | None = N
     c = np.zeros(d + 1)
     c[-1] = -1.0
     bounds = [(None, None)] * d + [(min_radius, max_radius)]
-    res = linprog(c, A_ub=np.hstack([A, norms[:, None]]), b_ub=np.asarray(b, dtype=float),
-                  bounds=bounds, method='highs')
+    A_ub, b_ub = np.hstack([A, norms[:, None]]), np.asarray(b, dtype=float)
+    res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method='highs')
+    if res.status == 4:     # HiGHS' presolve sometimes fails numerically: solve without it
+        res = linprog(c, A_ub=A_ub, b_ub=b_ub, bounds=bounds, method='highs',
+                      options={'presolve': False})
     if res.status != 0:
         return None
     return res.x[:d], float(res.x[-1])

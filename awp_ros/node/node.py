@@ -59,6 +59,8 @@ import time
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport, LegPolytopes, WrenchPolytope
 from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
@@ -114,7 +116,8 @@ class AwpNode(Node):
                                     'STATUS_ERROR until a corrected robot_description (or '
                                     'robot key) is set')
         name = self.pipeline.config.robot_name if self.pipeline else 'unknown'
-        topics = ['joint_states', 'contacts'] + (['imu'] if p.use_imu else [])
+        topics = ['joint_states', 'contacts'] + (['imu'] if p.use_imu else []) \
+            + (['odom'] if p.use_odometry else [])
         self.diagnostics = NodeDiagnostics(self.get_fully_qualified_name().lstrip('/'), name,
                                            topics, stale_timeout_s=p.stale_timeout_s)
         self.diagnostics.model_error = self.model_error
@@ -166,6 +169,8 @@ class AwpNode(Node):
         qos_big = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                              reliability=ReliabilityPolicy.RELIABLE)
         self.pub_report = self.create_publisher(FeasibilityReport, '~/report', qos_out)
+        self.pub_reference = self.create_publisher(FeasibilityReport, '~/reference_report',
+                                                   qos_big)
         self.pub_wrench = {k: self.create_publisher(WrenchPolytope, f'~/{k}', qos_big)
                            for k in ('awp', 'fwp', 'fws')}
         self.pub_legs = self.create_publisher(LegPolytopes, '~/leg_polytopes', qos_big)
@@ -176,6 +181,8 @@ class AwpNode(Node):
         subs = [('contacts', ContactState, self._on_contacts)]
         if p.use_imu:
             subs.append(('imu', Imu, self._on_imu))
+        if p.use_odometry:
+            subs.append(('odom', Odometry, self._on_odometry))
         subs.append(('joint_states', JointState, self._on_joint_state))
         self.subscriptions_ = []
         # The message info (publication sequence number, reception time) drives the loss
@@ -194,10 +201,13 @@ class AwpNode(Node):
             except Exception:  # noqa: BLE001 -- middleware without message_lost events
                 sub = self.create_subscription(mtype, topic, callback, qos_in)
             self.subscriptions_.append(sub)
-        handlers = [self._on_contacts] + ([self._on_imu] if p.use_imu else [])
+        handlers = [self._on_contacts] + ([self._on_imu] if p.use_imu else []) \
+            + ([self._on_odometry] if p.use_odometry else [])
         self.drain = InputDrain(list(zip(self.subscriptions_[:-1], handlers)),
                                 (self.subscriptions_[-1], self._handle_joint_state),
                                 self.context, budget_s=self.parameters.value('drain_budget_s'))
+        self.sub_reference = self.create_subscription(
+            WrenchStamped, '~/wrench_reference', self._on_wrench_reference, qos_big)
         self.marker_worker = None
         if self.parameters.value('marker_worker') and p.marker_rate_hz > 0.0:
             self.marker_worker = MarkerWorker(self.pub_markers.publish, self._output_error)
@@ -219,6 +229,21 @@ class AwpNode(Node):
         self.diagnostics.sequence('imu', info.get('publication_sequence_number'))
         if self.pipeline is not None:
             self.pipeline.on_imu(msg)
+
+    def _on_odometry(self, msg: Odometry, info: dict) -> None:
+        self.diagnostics.received('odom', time.monotonic())
+        self.diagnostics.sequence('odom', info.get('publication_sequence_number'))
+        if self.pipeline is not None:
+            self.pipeline.on_odometry(msg)
+
+    def _on_wrench_reference(self, msg: WrenchStamped) -> None:
+        """Answer a wrench to check with one ``~/reference_report``."""
+        if self.pipeline is None:
+            report = unevaluated_report(msg, self.parameters.value('wrench_frame_id'),
+                                        FeasibilityReport.STATUS_ERROR, self.model_error)
+        else:
+            report = self.pipeline.on_wrench_reference(msg)
+        self.pub_reference.publish(report)
 
     def _on_joint_state(self, msg: JointState, info: dict) -> None:
         self.drain.take_inputs()

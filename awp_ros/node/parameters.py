@@ -107,7 +107,8 @@ class NodeParameters:
         for name, (ptype, default, text, ro) in NODE_PARAMETER_DOCS.items():
             self._declare(name, default, text, read_only=ro)
         for name, f in _FIELDS.items():
-            self._declare(name, f.default, PARAMETER_DOCS[name], read_only=name == 'use_imu')
+            self._declare(name, f.default, PARAMETER_DOCS[name],
+                          read_only=name in ('use_imu', 'use_odometry'))
         self._declare_robot_parameters()
         node.add_on_set_parameters_callback(self._validate)
         node.add_post_set_parameters_callback(self._apply)

@@ -6,6 +6,9 @@ Conventions (SI units):
 - ``joint_positions`` / ``joint_velocities`` / ``joint_accelerations``: joint name ->
   [rad], [rad/s], [rad/s^2] (or [m], [m/s], [m/s^2] for prismatic joints). Positions must
   name every joint of the model; velocities and accelerations, when given, too.
+- ``joint_efforts``: joint name -> measured (or commanded) torque [N.m] (force [N] for
+  prismatic joints), as ``sensor_msgs/JointState.effort``; optional, but when given it
+  names every joint. It gives the measured contact forces (not the sets).
 - ``base_orientation``: unit quaternion ``[x, y, z, w]`` of the base in the world (ROS
   order), default level ``[0, 0, 0, 1]``.
 - ``base_twist``: ``[v; omega]`` [m/s, rad/s] of the base frame, **expressed in the base
@@ -45,6 +48,7 @@ class RobotState:
     joint_positions: Mapping[str, float]
     joint_velocities: Mapping[str, float] | None = None
     joint_accelerations: Mapping[str, float] | None = None
+    joint_efforts: Mapping[str, float] | None = None
     base_orientation: Sequence[float] = (0.0, 0.0, 0.0, 1.0)
     base_twist: Sequence[float] | None = None
     base_acceleration: Sequence[float] | None = None
@@ -61,6 +65,7 @@ class ResolvedState:
 
     ``q`` (n_j,), ``v`` / ``a`` (6 + n_j,) in Pinocchio's convention (base part in the base
     frame, spatial acceleration) or None, ``quaternion`` (4,) unit ``[x, y, z, w]``,
+    ``tau`` (n_j,) measured joint efforts or None,
     ``stance`` the feet in config order, ``normals`` (K, 3) unit, ``mus`` (K,),
     ``warnings`` human-readable notes (normalised inputs, joints beyond their limits).
     """
@@ -68,6 +73,7 @@ class ResolvedState:
     q: np.ndarray
     v: np.ndarray | None
     a: np.ndarray | None
+    tau: np.ndarray | None
     quaternion: np.ndarray
     stance: tuple[str, ...]
     normals: np.ndarray
@@ -130,6 +136,8 @@ def resolve_state(state: RobotState, joint_names: Sequence[str], feet: Sequence[
         if state.joint_accelerations is not None:
             a[6:] = _joint_vector(state.joint_accelerations, joint_names,
                                   'joint_accelerations')
+    tau = None if state.joint_efforts is None else _joint_vector(
+        state.joint_efforts, joint_names, 'joint_efforts')
     stance = _stance(state.stance, feet)
     dn = np.asarray(default_normal, dtype=float)
     normals = np.empty((len(stance), 3))
@@ -159,7 +167,7 @@ def resolve_state(state: RobotState, joint_names: Sequence[str], feet: Sequence[
                              f'friction_coefficients[{foot!r}]')
     elif not isinstance(state.friction_coefficients, Mapping):
         _check_feet(state.friction_coefficients, feet, 'friction_coefficients')
-    return ResolvedState(q, v, a, quat, stance, normals, mus, warnings)
+    return ResolvedState(q, v, a, tau, quat, stance, normals, mus, warnings)
 
 
 # -- helpers -------------------------------------------------------------------------------

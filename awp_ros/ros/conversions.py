@@ -43,7 +43,6 @@ __all__ = [
     'KINDS',
     'STATUS_NAMES',
     'error_report',
-    'hull_equations',
     'leg_polytopes_msg',
     'polytope_from_msg',
     'polytope_to_msg',
@@ -107,23 +106,10 @@ def polytope_to_msg(P: Polytope, msg: PolytopeMsg | None = None) -> PolytopeMsg:
     msg.halfspace_offsets = _doubles(P.b)
     msg.hull_origin = _doubles(P.hull_origin)
     msg.hull_basis = _doubles(P.hull_basis)
-    C = hull_equations(P)
+    C, d = P.equalities
     msg.equality_normals = _doubles(C)
-    msg.equality_offsets = _doubles(C @ P.hull_origin)
+    msg.equality_offsets = _doubles(d)
     return msg
-
-
-def hull_equations(P: Polytope) -> np.ndarray:
-    """
-    Return orthonormal rows ``C`` ((n - r) x n) with ``C x = C o`` on the affine hull of ``P``.
-
-    Empty for a full-dimensional or an empty set.
-    """
-    n, r = P.ambient_dim, int(P.dimension)
-    if r < 0 or r >= n:
-        return np.zeros((0, n))
-    Q, _ = np.linalg.qr(P.hull_basis, mode='complete')
-    return Q[:, r:].T
 
 
 def polytope_from_msg(msg: PolytopeMsg) -> Polytope:
@@ -201,6 +187,14 @@ def leg_polytopes_msg(header: Header, result: FeasibilityResult) -> LegPolytopes
         polytope_to_msg(leg.force_polytope, item.force_polytope)
         polytope_to_msg(leg.friction_polytope, item.friction_polytope)
         item.singular = bool(leg.singular)
+        m = result.measured
+        if m is None:
+            f, item.slip_margin, item.torque_ratio = (math.nan,) * 3, math.nan, math.nan
+        else:
+            f = tuple(float(c) for c in m.forces[foot])
+            item.slip_margin = float(m.slip_margins[foot])
+            item.torque_ratio = float(m.torque_ratios[foot])
+        item.measured_force.x, item.measured_force.y, item.measured_force.z = f
         legs.append(item)
     msg.legs = legs
     return msg
@@ -277,7 +271,7 @@ def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float
         msg.fws_stamp = header.stamp if fws_stamp is None else fws_stamp
     msg.feasible = bool(msg.fwp_feasible and msg.fws_feasible)
     _set_regions(msg, result)
-    _set_measured_forces(msg, None)
+    _set_measured_forces(msg, result.measured)
     msg.compute_time = float(compute_time)
     return msg
 
@@ -339,7 +333,7 @@ def error_report(header: Header, status: int, reason: str, *, compute_time: floa
 
 def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
                           imu: Imu | None = None, *, feet: Sequence[str],
-                          use_velocities: bool = True,
+                          use_velocities: bool = True, use_efforts: bool = True,
                           joint_names: Collection[str] | None = None,
                           notes: list[str] | None = None) -> RobotState:
     """
@@ -347,7 +341,8 @@ def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
 
     :param joints: ``name`` and ``position`` [rad] of every joint (same length); ``velocity``
         [rad/s] is used when ``use_velocities`` and it has one entry per name (empty = none).
-        ``effort`` is ignored.
+        ``effort`` [N.m], when it has one entry per name and ``use_efforts``, gives the
+        measured contact forces.
     :param contacts: stance (``in_contact``), per-foot unit normals (world-aligned axes) and
         friction coefficients; feet not named are in swing; None = no stance leg.
     :param imu: when given, ``orientation`` is the base orientation (the IMU frame must be
@@ -355,6 +350,7 @@ def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
         orientation estimate) is an error.
     :param feet: the config's feet (contact names must be among them).
     :param use_velocities: pass joint velocities (Coriolis terms in the bias torques).
+    :param use_efforts: pass joint efforts (measured contact forces).
     :param joint_names: the model's joints (a set is fastest). Names of ``joints`` not among
         them (e.g. an arm's or a gripper's joints that the model leaves out) are ignored and
         a note naming them is appended to ``notes``. None: every name is passed on, and the
@@ -377,6 +373,12 @@ def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
             raise InputError(f'joint_states has {len(names)} names but '
                              f'{len(joints.velocity)} velocities')
         velocities = dict(zip(names, np.asarray(joints.velocity, dtype=float).tolist()))
+    efforts = None
+    if use_efforts and len(joints.effort):
+        if len(joints.effort) != len(names):
+            raise InputError(f'joint_states has {len(names)} names but '
+                             f'{len(joints.effort)} efforts')
+        efforts = dict(zip(names, np.asarray(joints.effort, dtype=float).tolist()))
     if joint_names is not None:
         unknown = [n for n in names if n not in joint_names]
         if unknown:
@@ -384,6 +386,8 @@ def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
                 del positions[n]
                 if velocities is not None:
                     del velocities[n]
+                if efforts is not None:
+                    del efforts[n]
             if notes is not None:
                 notes.append(f'joint_states names joints the model does not have, ignored: '
                              f'{_shorten(unknown)}')
@@ -419,5 +423,5 @@ def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
         o = imu.orientation
         orientation = (o.x, o.y, o.z, o.w)
     return RobotState(joint_positions=positions, joint_velocities=velocities,
-                      base_orientation=orientation, stance=stance, normals=normals,
-                      friction_coefficients=mus)
+                      joint_efforts=efforts, base_orientation=orientation, stance=stance,
+                      normals=normals, friction_coefficients=mus)

@@ -35,22 +35,28 @@ adds a warning to that report. Output messages other than the report are built o
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Mapping
 from dataclasses import replace
+import math
 import os
 import time
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport
 from builtin_interfaces.msg import Time
+from geometry_msgs.msg import WrenchStamped
+from nav_msgs.msg import Odometry
 import numpy as np
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 
 from awp_ros.errors import AwpError, ConfigError, InputError
+from awp_ros.estimation.motion import MotionEstimator
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.evaluation.result import WrenchSetResult
 from awp_ros.geometry.linalg import quaternion_matrix
 from awp_ros.robot.config import load_config, RobotConfig, ros_parameters
+from awp_ros.robot.state import RobotState
 from awp_ros.ros.conversions import error_report, report_msg, robot_state_from_msgs, stamp_to_ns
 from awp_ros.ros.cycle import Cycle
 from awp_ros.ros.input_buffer import InputBuffer, stale_reason
@@ -64,6 +70,9 @@ _S = FeasibilityReport
 
 #: Longest ``status_message`` of a report (longer reasons are cut, marked with '...').
 MAX_REASON_CHARS = 1000
+
+#: Evaluated joint states kept for :meth:`Pipeline.on_wrench_reference` (the nearest in time).
+REFERENCE_HISTORY = 64
 
 
 class Pipeline:
@@ -86,8 +95,13 @@ class Pipeline:
         self._joint_names = frozenset(self.evaluator.model.joint_names)
         self.params = PipelineParams() if params is None else params
         check_marker_frame(self.params, self.root_link)
+        self.evaluator.hull_tol = max(self.params.hull_tolerance, self.evaluator.feasibility_tol)
         self._contacts = InputBuffer(input_buffer)
         self._imu = InputBuffer(input_buffer)
+        self._odom = InputBuffer(input_buffer)
+        self._estimator = self._new_estimator()
+        self._imu_error = ''
+        self._evaluated: deque = deque(maxlen=REFERENCE_HISTORY)
         self._last_js_ns: int | None = None
         self._last_fws_ns: int | None = None
         self._last_marker_ns: int | None = None
@@ -136,9 +150,12 @@ class Pipeline:
         evaluator = config if isinstance(config, FeasibilityEvaluator) \
             else FeasibilityEvaluator(config)
         check_marker_frame(self.params, evaluator.model.root_link)
+        evaluator.hull_tol = max(self.params.hull_tolerance, evaluator.feasibility_tol)
         self.evaluator = evaluator
         self._joint_names = frozenset(evaluator.model.joint_names)
         self._latest_fws_stance = None
+        self._estimator = self._new_estimator()
+        self._evaluated.clear()
 
     def set_params(self, params: PipelineParams) -> None:
         """
@@ -148,7 +165,18 @@ class Pipeline:
             root link.
         """
         check_marker_frame(params, self.root_link)
-        self.params = params
+        old, self.params = self.params, params
+        self.evaluator.hull_tol = max(params.hull_tolerance, self.evaluator.feasibility_tol)
+        if params.acceleration_cutoff_hz != old.acceleration_cutoff_hz \
+                or params.stale_timeout_s != old.stale_timeout_s:
+            self._estimator = self._new_estimator()
+
+    def _new_estimator(self) -> MotionEstimator:
+        """Return a motion estimator for the model and parameters in use (no history)."""
+        p = self.params
+        age = p.stale_timeout_s if p.stale_timeout_s > 0.0 else math.inf
+        return MotionEstimator(self.evaluator.model, cutoff_hz=p.acceleration_cutoff_hz,
+                               max_imu_age_s=age, max_odometry_age_s=age)
 
     # -- inputs ----------------------------------------------------------------------------
 
@@ -157,8 +185,79 @@ class Pipeline:
         self._contacts.add(msg)
 
     def on_imu(self, msg: Imu) -> None:
-        """Keep an IMU message for the joint states it precedes (used when ``use_imu``)."""
+        """
+        Take an IMU message (used when ``use_imu``): base orientation and motion.
+
+        The IMU's mounting comes from the URDF frame ``header.frame_id`` ('' = the root
+        link); a frame the URDF does not have, or a bad reading, makes the joint states
+        paired with it invalid (the reason names the frame), until a good reading comes.
+        """
         self._imu.add(msg)
+        try:
+            self._estimator.set_imu_frame(msg.header.frame_id or self.root_link)
+            o = msg.orientation
+            has = msg.orientation_covariance[0] != -1.0 and (o.x, o.y, o.z, o.w) != (0, 0, 0, 0)
+            w, f = msg.angular_velocity, msg.linear_acceleration
+            self._estimator.add_imu(stamp_to_ns(msg.header.stamp),
+                                    (o.x, o.y, o.z, o.w) if has else None,
+                                    (w.x, w.y, w.z), (f.x, f.y, f.z))
+            self._imu_error = ''
+        except AwpError as exc:
+            self._imu_error = f'imu: {exc}'
+
+    def on_odometry(self, msg: Odometry) -> None:
+        """
+        Take a ``nav_msgs/Odometry`` message (used when ``use_odometry``).
+
+        ``pose.pose.orientation``: the base orientation when there is no IMU;
+        ``twist.twist``: the base twist in ``child_frame_id`` (the base) [m/s, rad/s].
+        """
+        self._odom.add(msg)
+        o, tw = msg.pose.pose.orientation, msg.twist.twist
+        quat = (o.x, o.y, o.z, o.w)
+        try:
+            self._estimator.add_odometry(
+                stamp_to_ns(msg.header.stamp), quat if any(quat) else None,
+                (tw.linear.x, tw.linear.y, tw.linear.z),
+                (tw.angular.x, tw.angular.y, tw.angular.z))
+        except AwpError as exc:
+            self._imu_error = f'odometry: {exc}'
+
+    def on_wrench_reference(self, msg: WrenchStamped) -> FeasibilityReport:
+        """
+        Return the report of a wrench to check, against the joint state nearest in time.
+
+        The wrench is force [N] and moment about the CoM [N.m] in world-aligned axes (the
+        wrench frame: ``header.frame_id`` '' or ``wrench_frame_id``), e.g. what an MPC plans;
+        its margins are taken to the AWP, FWP and (latest) FWS of the evaluated joint state
+        whose stamp is nearest to ``header.stamp``, whose stamp the report carries.
+        """
+        t0 = time.perf_counter()
+        p = self.params
+        header = Header(stamp=msg.header.stamp, frame_id=p.wrench_frame_id)
+        if msg.header.frame_id not in ('', p.wrench_frame_id):
+            return unevaluated_report(msg, p.wrench_frame_id, _S.STATUS_INVALID_INPUT,
+                                      f'wrench_reference frame_id {msg.header.frame_id!r}: '
+                                      f"expected '' or {p.wrench_frame_id!r} (force and moment "
+                                      'about the CoM, world-aligned axes)', t0=t0)
+        if not self._evaluated:
+            return unevaluated_report(msg, p.wrench_frame_id, _S.STATUS_STALE_INPUT,
+                                      'no evaluated joint state yet', t0=t0)
+        ns = stamp_to_ns(msg.header.stamp)
+        js_stamp, result, fws, fws_stamp = min(
+            self._evaluated, key=lambda e: abs(stamp_to_ns(e[0]) - ns))
+        f, t = msg.wrench.force, msg.wrench.torque
+        w = np.array([f.x, f.y, f.z, t.x, t.y, t.z], dtype=float)
+        try:
+            checked = self.evaluator.with_wrench(result, w, fws=fws)
+        except InputError as exc:
+            return unevaluated_report(msg, p.wrench_frame_id, _S.STATUS_INVALID_INPUT,
+                                      str(exc), t0=t0)
+        header.stamp = js_stamp
+        report = report_msg(header, checked, compute_time=0.0, fws=checked.fws,
+                            fws_stamp=fws_stamp)
+        report.compute_time = time.perf_counter() - t0
+        return report
 
     def on_joint_state(self, msg: JointState, *, missing: int = 0,
                        queue_delay_s: float = 0.0) -> Cycle:
@@ -196,16 +295,21 @@ class Pipeline:
         contacts = self._contacts.pick(ns)
         imu = self._imu.pick(ns) if p.use_imu else None
         try:
-            inputs = [('contacts', contacts)] + ([('imu', imu)] if p.use_imu else [])
+            inputs = [('contacts', contacts)] + ([('imu', imu)] if p.use_imu else []) \
+                + ([('odom', self._odom.pick(ns))] if p.use_odometry else [])
             stale = stale_reason(ns, inputs, p.stale_timeout_s)
+            if not stale and self._imu_error and (p.use_imu or p.use_odometry):
+                raise InputError(self._imu_error)
             if stale:
                 report = error_report(header, _S.STATUS_STALE_INPUT,
                                       '; '.join(notes + [stale]))
             else:
                 state = robot_state_from_msgs(
                     msg, contacts, imu, feet=self.evaluator.feet,
-                    use_velocities=p.use_joint_velocities, joint_names=self._joint_names,
-                    notes=notes)
+                    use_velocities=p.use_joint_velocities, use_efforts=p.use_joint_efforts,
+                    joint_names=self._joint_names, notes=notes)
+                if p.use_imu or p.use_odometry or p.measured_motion:
+                    self._add_motion(ns, state, p)
                 result = self.evaluator.evaluate(state, fws=False)
                 if not result.stance:
                     notes.append('no foot in contact: every wrench set is {0}, no wrench '
@@ -223,6 +327,8 @@ class Pipeline:
                     self._latest_fws = result.fws
                     self._latest_fws_stamp = msg.header.stamp
                     self._latest_fws_stance = result.stance
+                self._evaluated.append((msg.header.stamp, result, self._latest_fws,
+                                        self._latest_fws_stamp))
                 warnings = notes + result.warnings
                 status = _S.STATUS_WARNING if warnings else _S.STATUS_OK
                 report = report_msg(header, result, compute_time=0.0, fws=self._latest_fws,
@@ -254,6 +360,29 @@ class Pipeline:
                      markers_due=markers_due, marker_header=marker_header,
                      marker_frame=frame, style=style, reference_point=R.T @ com,
                      latest_fws=self._latest_fws, pyramid_sides=self.config.pyramid_sides)
+
+    def _add_motion(self, ns: int, state: RobotState, p: PipelineParams) -> None:
+        """
+        Fill ``state``'s motion from the estimator (measured) or only its orientation.
+
+        The joint state's positions (and velocities when used) feed the differentiators; a
+        joint state that lacks joints is left to the evaluator, which names them.
+        """
+        model = self.evaluator.model
+        try:
+            q = model.joint_vector(state.joint_positions)
+            v = None if state.joint_velocities is None \
+                else model.joint_vector(state.joint_velocities)
+        except KeyError:
+            return
+        est = self._estimator.add_joints(ns, q, v)
+        state.base_orientation = est.base_orientation
+        if p.measured_motion:
+            fields = est.state_fields()
+            state.base_twist = fields['base_twist']
+            state.base_acceleration = fields['base_acceleration']
+            state.joint_velocities = fields['joint_velocities']
+            state.joint_accelerations = fields['joint_accelerations']
 
 
 def _due(last_ns: int | None, ns: int, rate_hz: float) -> bool:

@@ -13,7 +13,12 @@ import math
 from awp_ros.errors import ConfigError
 from awp_ros.robot.config import ros_parameters
 
-__all__ = ['PARAMETER_DOCS', 'PipelineParams']
+__all__ = ['MOTIONS', 'PARAMETER_DOCS', 'PipelineParams']
+
+
+#: Values of ``motion``: ``auto`` = ``measured`` when the IMU or odometry is on, else
+#: ``quasi_static``.
+MOTIONS = ('auto', 'measured', 'quasi_static')
 
 
 @dataclass(frozen=True)
@@ -30,14 +35,29 @@ class PipelineParams:
     use_imu: bool = False
     use_joint_velocities: bool = True
     max_queue_delay_s: float = 0.0
+    use_odometry: bool = False
+    motion: str = 'auto'
+    acceleration_cutoff_hz: float = 100.0
+    use_joint_efforts: bool = True
+    hull_tolerance: float = 3.0
+
+    @property
+    def measured_motion(self) -> bool:
+        """Return whether the wrench and leg biases come from the measured motion."""
+        if self.motion == 'auto':
+            return self.use_imu or self.use_odometry
+        return self.motion == 'measured'
 
     def __post_init__(self) -> None:
         """Validate every field (raise ConfigError naming the bad value)."""
-        for name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz', 'max_queue_delay_s'):
+        if self.motion not in MOTIONS:
+            raise ConfigError(f"motion must be one of {', '.join(MOTIONS)}, got {self.motion!r}")
+        for name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz', 'max_queue_delay_s',
+                     'hull_tolerance'):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ConfigError(f'{name} must be a finite number >= 0, got {value!r}')
-        for name in ('marker_force_scale', 'marker_moment_scale'):
+        for name in ('marker_force_scale', 'marker_moment_scale', 'acceleration_cutoff_hz'):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ConfigError(f'{name} must be a finite number > 0, got {value!r}')
@@ -96,4 +116,20 @@ PARAMETER_DOCS = {
                          'with a STATUS_STALE_INPUT report instead of being evaluated, so '
                          'latency stays bounded and the queue never overflows [s]; 0 = '
                          'evaluate every joint state however late',
+    'use_odometry': 'subscribe to odom (nav_msgs/Odometry): base twist in child_frame_id, and '
+                    'the base orientation when there is no IMU (read-only)',
+    'motion': "what the wrench and leg biases are computed for: 'measured' (the motion of "
+              'the IMU, odometry and differentiated joint velocities: w = [m (cdd - g); '
+              "dL/dt], biases with M qdd + c), 'quasi_static' (the robot standing still: "
+              "w = [0, 0, m g, 0, 0, 0]) or 'auto' (measured when use_imu or use_odometry)",
+    'acceleration_cutoff_hz': 'cut-off of the causal 2nd-order Butterworth differentiators of '
+                              'the joint velocities and the IMU angular velocity [Hz]; lag '
+                              'sqrt(2) / (2 pi f_c) (2.25 ms at 100 Hz)',
+    'use_joint_efforts': 'use joint_states efforts: measured contact forces, slip margins, '
+                         'torque ratios and the external wrench',
+    'hull_tolerance': "distance of the wrench from a flat set's affine hull (1-2 stance legs) "
+                      'up to which it counts as on the hull [N, N.m]: a measured wrench is '
+                      'on the 5D hull of two stance legs only up to its estimation error '
+                      '(measured: max 1.6 on the default bag, 2 in the analytic-motion test), '
+                      'so 3 by default; 0 = the feasibility tolerance (1e-6)',
 }

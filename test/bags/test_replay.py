@@ -42,6 +42,18 @@ def gait_bag(tmp_path_factory):
 @pytest.fixture(scope='module')
 def replayed(gait_bag, tmp_path_factory):
     out = tmp_path_factory.mktemp('out') / 'replayed.mcap'
+    # Quasi-static: awp_eval below rebuilds each state from the bag's messages alone.
+    params, base_dir = load_parameters('hyq', {'use_imu': True, 'motion': 'quasi_static',
+                                               'hull_tolerance': 0.0})
+    pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
+    summary = replay_bag(gait_bag, out, pipeline=pipeline, progress=False)
+    return out, summary
+
+
+@pytest.fixture(scope='module')
+def replayed_measured(gait_bag, tmp_path_factory):
+    """Replay with the defaults and use_imu: the measured motion (IMU, joint accelerations)."""
+    out = tmp_path_factory.mktemp('out') / 'measured.mcap'
     params, base_dir = load_parameters('hyq', {'use_imu': True})
     pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
     summary = replay_bag(gait_bag, out, pipeline=pipeline, progress=False)
@@ -267,10 +279,10 @@ def _stop(proc) -> None:
             proc.wait()
 
 
-def test_play_into_a_running_node_gives_the_offline_reports(replayed, gait_bag, tmp_path,
-                                                            ros_env, repo):
+def test_play_into_a_running_node_gives_the_offline_reports(replayed_measured, gait_bag,
+                                                            tmp_path, ros_env, repo):
     """awp_node (console script) + awp_replay --play + a recorder: three processes."""
-    out, summary = replayed
+    out, summary = replayed_measured
     offline = {_ns(r.header.stamp): r for _, r in _read(out, [REPORT])[REPORT]}
     node = subprocess.Popen([str(BIN / 'awp_node'), '--ros-args', '--params-file',
                              str(repo / 'config' / 'hyq.yaml'), '-p', 'use_imu:=true'],

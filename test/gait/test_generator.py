@@ -1,4 +1,4 @@
-"""The gait generator: feet where planned, no slip, statically stable crawl, reproducible."""
+"""The gait generator: feet where planned, no slip, crawl, lurch and trot, reproducible."""
 
 from __future__ import annotations
 
@@ -35,16 +35,15 @@ def _world_feet(model: RobotModel, gait, i: int) -> np.ndarray:
     return np.array([model.data.oMf[model.legs[f].frame_id].translation for f in gait.feet])
 
 
-def test_default_gait_is_crawl_then_trot_at_500_hz_for_several_seconds(gait):
+def test_default_gait_is_crawl_lurch_trot_at_500_hz_for_several_seconds(gait):
     assert gait.rate_hz == 500.0
     np.testing.assert_allclose(np.diff(gait.t), 1 / 500.0, atol=1e-12)
-    names = [name for name, _, _ in gait.segments]
-    assert names == ['crawl', 'trot']
-    for _, t0, t1 in gait.segments:
-        assert t1 - t0 >= 3.0
+    assert gait.segments == (('crawl', 0.5, 4.9), ('lurch', 5.4, 7.6), ('trot', 8.1, 11.1))
+    assert gait.infeasible == (('lurch', 6.3, 6.5),)
+    assert len(gait) == 5801 and gait.t[-1] == pytest.approx(11.6)
     assert gait.q.shape == (len(gait), 12) and gait.v.shape == (len(gait), 12)
-    assert len(gait.joint_names) == 12 and gait.feet == ('lf_foot', 'rf_foot', 'lh_foot',
-                                                          'rh_foot')
+    assert len(gait.joint_names) == 12
+    assert gait.feet == ('lf_foot', 'rf_foot', 'lh_foot', 'rh_foot')
 
 
 def test_forward_kinematics_of_the_joint_angles_puts_the_feet_on_their_targets(hyq, gait):
@@ -63,9 +62,11 @@ def test_stance_feet_are_on_the_ground_and_swing_feet_above_it(gait):
 
 def test_stance_feet_do_not_slip(hyq, gait):
     """
-    World velocity of each stance foot from the full model (joint velocities + base twist
+    Check that every stance foot's world velocity from the full model is zero.
 
-    from the IMU rate and the differentiated base position) is zero."""
+    Joint velocities plus the base twist from the IMU rate and the differentiated base
+    position.
+    """
     _, model = hyq
     dt = 1.0 / gait.rate_hz
     lin_w = np.gradient(gait.base_position, dt, axis=0)
@@ -136,17 +137,21 @@ def test_trot_moves_diagonal_pairs_together(gait):
     assert pairs == {('lf_foot', 'rh_foot'), ('rf_foot', 'lh_foot')}
 
 
-def test_trot_advances_the_base_and_ends_at_rest(gait):
+def test_trot_advances_the_base_and_ends_at_rest(hyq, gait):
+    _, model = hyq
     trot = _phase(gait, 'trot')
     x = gait.base_position[trot, 0]
     assert x[-1] - x[0] > 0.4
     assert np.diff(x).min() > -1e-9                # the trot never walks backwards
-    _, crawl_start, _ = gait.segments[0]
-    _, trot_start, _ = gait.segments[1]
-    x0, x1 = (gait.base_position[int(round(t * gait.rate_hz)), 0]
-              for t in (crawl_start, trot_start))
-    assert x1 - x0 == pytest.approx(0.10, abs=1e-6)   # one crawl cycle, 4 steps of 0.1 m
-    np.testing.assert_allclose(gait.v[-1], 0.0, atol=1e-5)     # at rest [rad/s]
+    _, t0, t1 = gait.segments[0]
+    feet_x = gait.foot_positions[[round(t0 * gait.rate_hz), round(t1 * gait.rate_hz)], :, 0]
+    assert np.ptp(feet_x.mean(axis=1)) == pytest.approx(0.10, abs=1e-9)   # 4 steps x 0.1 m
+    # At rest at both ends, in the standing posture over the centre of the feet [m, rad/s].
+    np.testing.assert_allclose(gait.base_position[-1, :2] - gait.base_position[0, :2],
+                               gait.foot_positions[-1, :, :2].mean(axis=0)
+                               - gait.foot_positions[0, :, :2].mean(axis=0), atol=1e-5)
+    np.testing.assert_allclose(gait.q[[0, -1]], model.standing_q[None].repeat(2, 0), atol=1e-3)
+    np.testing.assert_allclose(gait.v[[0, 1, -2, -1]], 0.0, atol=1e-5)
     assert gait.stance[-1].all() and gait.stance[0].all()
 
 
@@ -174,7 +179,12 @@ def test_single_gaits_and_standing_alone(hyq):
     assert stand.stance.all()
     np.testing.assert_allclose(stand.q, np.tile(model.standing_q, (len(stand), 1)), atol=1e-9)
     trot = generate_gait(config, GaitParams(sequence=('trot',), trot_cycles=1), model=model)
-    assert [s[0] for s in trot.segments] == ['trot']
+    assert [s[0] for s in trot.segments] == ['trot'] and trot.infeasible == ()
+    lurch = generate_gait(config, GaitParams(sequence=('lurch',), lurch_foot='rh'), model=model)
+    assert lurch.segments == (('lurch', 0.5, 2.7),) and lurch.infeasible == (('lurch', 1.4, 1.6),)
+    lifted = ~lurch.stance.all(axis=1)
+    assert {lurch.feet[k] for k in np.flatnonzero(~lurch.stance[lifted].all(axis=0))} == {
+        'rh_foot'}
 
 
 def test_bad_parameters_and_unreachable_steps_raise(hyq):
@@ -183,6 +193,12 @@ def test_bad_parameters_and_unreachable_steps_raise(hyq):
         GaitParams(sequence=('gallop',))
     with pytest.raises(InputError, match='trot_duty'):
         GaitParams(trot_duty=0.4)
+    with pytest.raises(InputError, match='lurch_foot'):
+        GaitParams(lurch_foot='left')
+    with pytest.raises(InputError, match='before the foot is down'):
+        GaitParams(lurch_delay_s=1.0, lurch_s=0.6, lurch_lift_s=1.5)
+    with pytest.raises(InputError, match='balance_iterations'):
+        GaitParams(balance_iterations=0)
     with pytest.raises(ModelError, match='out of reach|leaves its limits'):
         generate_gait(config, GaitParams(sequence=('crawl',), crawl_step_m=0.9), model=model)
     with pytest.raises(ConfigError, match='standing_posture'):

@@ -2,16 +2,21 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport
+from geometry_msgs.msg import Vector3
 import numpy as np
 import pytest
+from scipy.optimize import linprog
 from sensor_msgs.msg import Imu
 
 from awp_ros.errors import ConfigError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
-from awp_ros.ros.conversions import stamp_to_ns
+from awp_ros.robot.config import load_config
+from awp_ros.robot.state import RobotState
+from awp_ros.ros.conversions import polytope_from_msg, stamp_to_ns
 from awp_ros.ros.cycle import OUTPUTS
 from awp_ros.ros.pipeline import Pipeline
 from awp_ros.ros.pipeline_params import PipelineParams
@@ -138,6 +143,9 @@ def test_imu_orientation_rotates_the_base_and_needs_a_message(evaluator):
     assert rep.status == S.STATUS_STALE_INPUT and 'no imu' in rep.status_message
     imu = stamp(Imu(), T0)
     imu.orientation.y, imu.orientation.w = math.sin(0.1), math.cos(0.1)   # pitch 0.2 rad
+    # At rest the IMU (frame '' = the base link) reads the specific force R^T (0, 0, g).
+    imu.linear_acceleration.x = -math.sin(0.2) * 9.81
+    imu.linear_acceleration.z = math.cos(0.2) * 9.81
     pl.on_imu(imu)
     cycle = pl.on_joint_state(joints_msg(evaluator, T0 + 10**8))
     ref = evaluator.evaluate(evaluator.standing_state(
@@ -162,7 +170,7 @@ def test_from_parameters_reads_a_params_file_mapping(repo):
 
 def test_inputs_are_paired_by_stamp_as_in_the_recorded_order(evaluator):
     """A lagging node has taken contacts newer than the joint state it evaluates."""
-    pl = _pipeline(use_imu=True)
+    pl = _pipeline(use_imu=True, motion='quasi_static')     # the IMU's orientation only
     ms = 10**6
     for i, stance in enumerate([FEET, FEET[:2], FEET[:3]]):      # at 0, 10 and 20 ms
         pl.on_contacts(contacts_msg(T0 + 10 * i * ms, stance=stance))
@@ -184,3 +192,54 @@ def test_inputs_are_paired_by_stamp_as_in_the_recorded_order(evaluator):
     pl.on_contacts(contacts_msg(T0 + 3 * ms, stance=FEET[:3]))
     pl.on_contacts(contacts_msg(T0 + 4 * ms, stance=FEET[:2]))
     assert len(pl.on_joint_state(joints_msg(evaluator, T0)).report.stance_feet) == 3
+
+
+def pyramid_rows(n, mu, sides):
+    """Rows ``a . f <= 0`` of the N-sided pyramid (t1 = world x on the contact plane)."""
+    t1 = np.array([1.0, 0.0, 0.0]) - n[0] * n
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(n, t1)
+    th = 2 * np.pi * np.arange(sides) / sides
+    return np.cos(th)[:, None] * t1 + np.sin(th)[:, None] * t2 - mu * np.cos(np.pi / sides) * n
+
+
+@pytest.mark.parametrize('sides', [3, 6, 8])
+def test_pyramid_sides_from_the_config_reach_reports_polytopes_and_markers(evaluator, sides):
+    config = replace(load_config('hyq'), pyramid_sides=sides)
+    pl = Pipeline(config, PipelineParams(fws_rate_hz=0.0))
+    normals = {'lf_foot': [0.3, 0.0, 1.0], 'rf_foot': [0.0, -0.25, 1.0]}
+    mus = [0.45, 0.9, 0.6, 0.75]
+    msg = ContactState(names=FEET, in_contact=[True] * 4, friction_coefficients=mus,
+                       normals=[Vector3(**dict(zip('xyz', normals.get(f, [0.0, 0.0, 1.0]))))
+                                for f in FEET])
+    pl.on_contacts(stamp(msg, T0))
+    q = evaluator.model.standing_q + 0.03
+    cycle = pl.on_joint_state(joints_msg(evaluator, T0 + 1000, dq=0.03))
+    assert cycle.report.status == S.STATUS_WARNING        # the non-unit normals
+    unit = {f: (np.array(n) / np.linalg.norm(n)).tolist() for f, n in normals.items()}
+    state = RobotState(joint_positions=dict(zip(evaluator.model.joint_names, q.tolist())),
+                       normals=unit, friction_coefficients=dict(zip(FEET, mus)))
+    ref = FeasibilityEvaluator(config).evaluate(state)
+    four = evaluator.evaluate(state)
+    for name in ('awp', 'fwp', 'fws'):
+        got = getattr(cycle.report, f'{name}_margin')
+        assert got == pytest.approx(getattr(ref, name).margin, abs=1e-9), name
+        if name != 'awp':                                   # the sides matter
+            assert abs(got - getattr(four, name).margin) > 1e-3, name
+    # Friction-bounded polytopes of the message: the message's force polytope cut by the
+    # N-sided pyramid of each foot's normal and mu (an LP per direction).
+    rng = np.random.default_rng(sides)
+    for leg, foot, mu in zip(cycle.leg_polytopes().legs, FEET, mus):
+        n = np.array(unit.get(foot, [0.0, 0.0, 1.0]))
+        F, Q = polytope_from_msg(leg.force_polytope), polytope_from_msg(leg.friction_polytope)
+        rows = np.vstack([pyramid_rows(n, mu, sides), -n])
+        for d in rng.normal(size=(5, 3)):
+            lp = linprog(-d, A_ub=np.vstack([F.A, rows]),
+                         b_ub=np.concatenate([F.b, np.zeros(len(rows))]),
+                         bounds=[(None, None)] * 3, method='highs')
+            assert lp.status == 0
+            assert np.max(Q.vertices @ d) == pytest.approx(-lp.fun, rel=1e-7, abs=1e-6)
+    # The drawn pyramids have N sides: 2 N triangles (both faces) per leg.
+    pyramids = [m for m in cycle.markers().markers if m.ns.startswith('friction_pyramid')]
+    assert len(pyramids) == 4
+    assert all(len(m.points) == 6 * sides for m in pyramids)
