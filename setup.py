@@ -14,6 +14,7 @@ executables = {
     'awp_eval': 'awp_ros.cli.eval:main',
     'awp_bench': 'awp_ros.cli.bench:main',
     'awp_demo': 'awp_ros.demo.demo:main',
+    'awp_param': 'awp_ros.cli.param:main',
 }
 
 setup(

@@ -11,6 +11,7 @@ from itertools import combinations
 
 from awp_ros_msgs.msg import ContactState
 import numpy as np
+import pinocchio as pin
 from sensor_msgs.msg import JointState
 
 from awp_ros.wrench.wrench_polytope import lift_matrices
@@ -144,3 +145,34 @@ def joints_msg(evaluator, ns: int, dq: float = 0.0) -> JointState:
 def contacts_msg(ns: int, stance=FEET, mu=()) -> ContactState:
     return stamp(ContactState(names=FEET, in_contact=[f in stance for f in FEET],
                               friction_coefficients=list(mu)), ns)
+
+
+# -- joint efforts of known contact forces (inverse dynamics, Jacobians by differences) -----
+
+def fd_jacobian(model, q: np.ndarray, frame: str, eps: float = 1e-7) -> np.ndarray:
+    """Return d(foot position)/d(joint positions), (3, n_joints), by central differences."""
+    data = model.createData()
+    fid = model.getFrameId(frame)
+
+    def foot(qq):
+        pin.framesForwardKinematics(model, data, qq)
+        return data.oMf[fid].translation.copy()
+    J = np.zeros((3, model.nq - 7))
+    for i in range(model.nq - 7):
+        dq = np.zeros(model.nq)
+        dq[7 + i] = eps
+        J[:, i] = (foot(q + dq) - foot(q - dq)) / (2 * eps)
+    return J
+
+
+def efforts_for(evaluator, joints: dict, forces: dict, velocities: dict | None = None):
+    """Return tau = rnea(q, v, 0) - sum_k J_k^T f_k, J by finite differences (base at rest)."""
+    m = evaluator.model
+    q = np.concatenate([[0, 0, 0, 0, 0, 0, 1], [joints[n] for n in m.joint_names]])
+    v = np.zeros(m.model.nv)
+    if velocities:
+        v[6:] = [velocities[n] for n in m.joint_names]
+    tau = pin.rnea(m.model, m.model.createData(), q, v, np.zeros(m.model.nv))[6:].copy()
+    for foot, f in forces.items():
+        tau -= fd_jacobian(m.model, q, foot).T @ np.asarray(f, dtype=float)
+    return dict(zip(m.joint_names, tau.tolist()))

@@ -36,7 +36,9 @@ OUTPUT_TYPES = {'report': 'awp_ros_msgs/msg/FeasibilityReport',
                 'fwp': 'awp_ros_msgs/msg/WrenchPolytope',
                 'fws': 'awp_ros_msgs/msg/WrenchPolytope',
                 'leg_polytopes': 'awp_ros_msgs/msg/LegPolytopes',
-                'markers': 'visualization_msgs/msg/MarkerArray'}
+                'markers': 'visualization_msgs/msg/MarkerArray',
+                'feasible_region': 'geometry_msgs/msg/PolygonStamped',
+                'support_region': 'geometry_msgs/msg/PolygonStamped'}
 _MSG_PACKAGE = 'awp_ros_msgs'
 
 

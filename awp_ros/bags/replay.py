@@ -28,14 +28,17 @@ from awp_ros.errors import BagError
 __all__ = ['check_input_topics', 'replay_bag']
 
 
-def check_input_topics(info, topics: Mapping[str, str], *, use_imu: bool) -> dict[str, str]:
+def check_input_topics(info, topics: Mapping[str, str], *, use_imu: bool,
+                       use_contacts: bool = True) -> dict[str, str]:
     """
     Return the input roles present (role -> topic), checking names and types.
 
+    :param use_contacts: the contacts topic is needed (``contact_source`` ``topic``).
     :raises BagError: ``joint_states`` or ``contacts`` (or ``imu`` with ``use_imu``) is
         missing, or a topic carries another type than its role needs.
     """
-    needed = ['joint_states', 'contacts'] + (['imu'] if use_imu else [])
+    needed = ['joint_states'] + (['contacts'] if use_contacts else []) \
+        + (['imu'] if use_imu else [])
     have = {}
     for role, (_, msgtype) in INPUT_TOPICS.items():
         topic = topics.get(role, INPUT_TOPICS[role][0])
@@ -80,7 +83,8 @@ def replay_bag(in_bag, out_bag, *, pipeline, topics: Mapping[str, str] | None = 
     from awp_ros.ros.cycle import OUTPUTS
 
     info = bag_info(in_bag)
-    roles = check_input_topics(info, topics or {}, use_imu=pipeline.params.use_imu)
+    roles = check_input_topics(info, topics or {}, use_imu=pipeline.params.use_imu,
+                               use_contacts=pipeline.params.contact_source == 'topic')
     wanted = tuple(OUTPUTS if outputs is None else outputs)
     unknown = [o for o in wanted if o not in OUTPUTS]
     if unknown:

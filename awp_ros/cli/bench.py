@@ -14,18 +14,31 @@ rate, the FWS apart, possibly at a lower rate):
    :meth:`~awp_ros.evaluation.evaluator.FeasibilityEvaluator.add_fws` (``fws``: the exact H-rep,
    ``fws_directional``: the 12 directional margins on it, ``fws_margin``: the Euclidean
    margin on it), and ``fws_query_lp``: membership and the 12 directional margins by
-   :func:`~awp_ros.wrench.fws_queries.lp_directional_margins` (exact LPs, no H-rep).
+   :func:`~awp_ros.wrench.fws_queries.lp_directional_margins` (exact LPs, no H-rep);
+   ``regions_fws_cwc``: the feasible and the support region of each state (exact slices of
+   the FWS and CWC H-reps, :func:`~awp_ros.wrench.com_region.com_region`), and
+   ``regions_baseline``: both by Bretl & Lall's iterative projection with LPs
+   (:func:`~awp_ros.geometry.iterative_projection.iterative_projection`, as jet-leg does;
+   area tolerance 1e-6 m^2) on the first ``--baseline-samples`` of the same states.
 
 The table gives the median, 90th percentile and maximum [ms] of each; the last line is one
 JSON object with the medians: ``total_ms`` (the per-cycle evaluation without the FWS),
 ``fws_margin_ms`` (friction polytopes + FWS H-rep + Euclidean margin: the exact FWS margin),
 ``fws_query_lp_ms`` (friction polytopes + the LP queries),
-and ``<stage>_ms`` for every stage, the FWS's margin step alone as ``fws_margin_step_ms``.
+and ``<stage>_ms`` for every stage, the FWS's margin step alone as ``fws_margin_step_ms``;
+``regions_ms`` (both CoM regions, FWS + CWC slices), ``regions_baseline_ms`` and
+``regions_speedup`` (their ratio); the per-cycle ``regions`` stage (support and FWP regions)
+is ``regions_stage_ms``. ``batch_states_per_s``: states per second of
+:meth:`~awp_ros.evaluation.evaluator.FeasibilityEvaluator.evaluate_many` on the same postures
+(per-cycle sets, no FWS), ``loop_states_per_s`` the same by a loop of ``evaluate``.
+``estimation_ms``: the motion estimation of one joint state as the pipeline runs it with
+``use_imu`` (:func:`estimation_times`), not included in ``total``.
 """
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 import json
 import sys
 import time
@@ -33,8 +46,13 @@ import time
 import numpy as np
 
 from awp_ros.errors import AwpError
+from awp_ros.estimation.motion import MotionEstimator
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator, STAGES
+from awp_ros.geometry.iterative_projection import iterative_projection, torque_halfspaces
+from awp_ros.robot.state import resolve_state
 from awp_ros.runtime import tune_process
+from awp_ros.wrench.com_region import com_region
+from awp_ros.wrench.friction_polytope import friction_rows
 from awp_ros.wrench.fws_queries import lp_directional_margins
 
 __all__ = ['main', 'run_benchmark']
@@ -46,7 +64,7 @@ FWS_STAGES = ('fws_friction', 'fws', 'fws_directional', 'fws_margin', 'fws_query
 def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 0,
                   spread: float = 0.1, warmup: int = 5,
                   stance: tuple[str, ...] | None = None,
-                  fws: bool = True) -> dict[str, np.ndarray]:
+                  fws: bool = True, baseline_samples: int = 20) -> dict[str, np.ndarray]:
     """
     Return the per-stage timings [ms] of ``samples`` random standing postures.
 
@@ -56,7 +74,10 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
     :param spread: half-width of the uniform joint offsets [rad].
     :param warmup: untimed evaluations first (caches, allocations).
     :param stance: stance feet (default all).
-    :param fws: also time the FWS stages and the LP queries, in a second pass.
+    :param fws: also time the FWS stages, the LP queries and the CoM regions, in a second
+        pass.
+    :param baseline_samples: states (the first ones) on which the iterative-projection
+        baseline of the regions is timed.
     :return: stage name -> array (samples,) [ms] (:data:`~awp_ros.evaluation.evaluator.STAGES`,
         ``total`` and, with ``fws``, :data:`FWS_STAGES`), plus ``feasible`` (bool array:
         ``w`` in the FWS when computed, else in the FWP).
@@ -68,6 +89,9 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
     postures = q0 + rng.uniform(-spread, spread, size=(warmup + samples, q0.size))
     keys = list(STAGES) + ['total'] + (list(FWS_STAGES) if fws else [])
     times = {name: np.zeros(samples) for name in keys}
+    if fws:
+        times['regions_fws_cwc'] = np.zeros(samples)
+        times['regions_baseline'] = np.zeros(min(samples, max(baseline_samples, 0)))
     feasible = np.zeros(samples, dtype=bool)
     # Pass 1, the per-cycle evaluation. Results are dropped as in the node's loop (keeping
     # them all would grow the heap and put page faults in the timings).
@@ -94,7 +118,12 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
                 times[name][i - warmup] = result.timings_ms[name]
             times['fws_friction'][i - warmup] = friction_ms
             times['fws_query_lp'][i - warmup] = lp_ms
+            times['regions_fws_cwc'][i - warmup] = _regions(result)
+            if i - warmup < times['regions_baseline'].size:
+                times['regions_baseline'][i - warmup] = _regions_baseline(evaluator, base,
+                                                                          result)
             feasible[i - warmup] = result.feasible
+    times['estimation'] = estimation_times(evaluator, postures, seed=seed)[warmup:]
     times['feasible'] = feasible
     return times
 
@@ -106,6 +135,101 @@ def _lp_query(result) -> float:
     t0 = time.perf_counter()
     lp_directional_margins(p, V, result.wrench)
     return 1e3 * (time.perf_counter() - t0)
+
+
+def _regions(result) -> float:
+    """Return the time [ms] of the feasible and support regions (FWS and CWC slices)."""
+    f, m = result.wrench[:3], result.wrench[3:]
+    t0 = time.perf_counter()
+    com_region(result.fws.polytope, f, m)
+    com_region(result.cwc, f, m)
+    return 1e3 * (time.perf_counter() - t0)
+
+
+def _regions_baseline(evaluator: FeasibilityEvaluator, state, result) -> float:
+    """Return the time [ms] of both regions by iterative projection with LPs (baseline)."""
+    cfg, model = evaluator.config, evaluator.model
+    s = resolve_state(state, model.joint_names, cfg.feet, default_normal=cfg.unit_normal,
+                      default_mu=cfg.friction_coefficient)
+    kin = model.kinematics(s.q, s.stance, quaternion=s.quaternion, v=s.v, a=s.a)
+    rows = friction_rows(s.normals, s.mus, cfg.pyramid_sides)
+    both, friction = [], []
+    for k, foot in enumerate(s.stance):
+        H, g = torque_halfspaces(kin.J[k], kin.bias[k], model.legs[foot].tau_min,
+                                 model.legs[foot].tau_max)
+        zero = np.zeros(len(rows[k]))
+        both.append((np.vstack([H, rows[k]]), np.concatenate([g, zero])))
+        friction.append((rows[k], zero))
+    f, m = result.wrench[:3], result.wrench[3:]
+    t0 = time.perf_counter()
+    for halfspaces in (both, friction):
+        iterative_projection(kin.p_foot__com, halfspaces, f, m, area_tol=1e-6)
+    return 1e3 * (time.perf_counter() - t0)
+
+
+def batch_rates(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 0,
+                spread: float = 0.1, stance: tuple[str, ...] | None = None
+                ) -> tuple[float, float]:
+    """
+    Return the states/s of ``evaluate_many`` and of a loop of ``evaluate`` (no FWS).
+
+    Over the ``samples`` postures of :func:`run_benchmark` (same seed and spread), each
+    timed once after an untimed run of both.
+    """
+    rng = np.random.default_rng(seed)
+    base = evaluator.standing_state(stance=stance)
+    names = list(base.joint_positions)
+    q0 = np.array([base.joint_positions[n] for n in names])
+    states = [replace(base, joint_positions=dict(zip(names, q.tolist())))
+              for q in q0 + rng.uniform(-spread, spread, size=(samples, q0.size))]
+    rates = []
+    for run in (lambda: evaluator.evaluate_many(states),
+                lambda: [evaluator.evaluate(s, fws=False) for s in states]):
+        run()
+        t0 = time.perf_counter()
+        run()
+        rates.append(samples / (time.perf_counter() - t0))
+    return rates[0], rates[1]
+
+
+def estimation_times(evaluator: FeasibilityEvaluator, postures: np.ndarray, *,
+                     seed: int = 0, rate_hz: float = 500.0) -> np.ndarray:
+    """
+    Return the time [ms] of the motion estimation of each posture, one joint state each.
+
+    What the pipeline adds per joint state with ``use_imu``: an IMU reading (synthetic: in
+    the root link's frame, level, at rest with gyro and accelerometer noise) into
+    :meth:`~awp_ros.estimation.motion.MotionEstimator.add_imu`, the joint state's positions
+    and (random) velocities from name maps into
+    :meth:`~awp_ros.estimation.motion.MotionEstimator.add_joints`, and the estimate's motion
+    fields into the state; stamps ``1 / rate_hz`` apart.
+    """
+    model = evaluator.model
+    rng = np.random.default_rng(seed)
+    names = model.joint_names
+    est = MotionEstimator(model, imu_frame=model.root_link)
+    state = evaluator.standing_state()
+    gyro = rng.normal(0.0, 0.01, size=(len(postures), 3))
+    accel = rng.normal(0.0, 0.05, size=(len(postures), 3)) + (0.0, 0.0, 9.81)
+    velocities = rng.normal(0.0, 0.5, size=postures.shape)
+    step = int(round(1e9 / rate_hz))
+    out = np.zeros(len(postures))
+    for i, q in enumerate(postures):
+        state.joint_positions = dict(zip(names, q.tolist()))
+        state.joint_velocities = dict(zip(names, velocities[i].tolist()))
+        stamp = i * step
+        t0 = time.perf_counter()
+        est.add_imu(stamp, (0.0, 0.0, 0.0, 1.0), gyro[i], accel[i])
+        e = est.add_joints(stamp, model.joint_vector(state.joint_positions),
+                           model.joint_vector(state.joint_velocities))
+        fields = e.state_fields()
+        state.base_orientation = e.base_orientation
+        state.base_twist = fields['base_twist']
+        state.base_acceleration = fields['base_acceleration']
+        state.joint_velocities = fields['joint_velocities']
+        state.joint_accelerations = fields['joint_accelerations']
+        out[i] = 1e3 * (time.perf_counter() - t0)
+    return out
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -131,6 +255,9 @@ def build_parser() -> argparse.ArgumentParser:
                         help='stance feet (default: all)')
     parser.add_argument('--no-fws', action='store_true',
                         help='time the per-cycle evaluation only (no FWS, no LP queries)')
+    parser.add_argument('--baseline-samples', type=int, default=20,
+                        help='states timed with the iterative-projection baseline of the CoM '
+                             'regions (default: 20)')
     parser.add_argument('--json-only', action='store_true',
                         help='print only the JSON line')
     return parser
@@ -147,7 +274,8 @@ def main(argv: list[str] | None = None) -> int:
         evaluator = FeasibilityEvaluator(args.robot)
         stance = None if args.stance is None else tuple(args.stance)
         times = run_benchmark(evaluator, args.samples, seed=args.seed, spread=args.spread,
-                              warmup=args.warmup, stance=stance, fws=not args.no_fws)
+                              warmup=args.warmup, stance=stance, fws=not args.no_fws,
+                              baseline_samples=args.baseline_samples)
     except (ValueError, AwpError) as exc:
         sys.stderr.write(f'{PROG}: error: {" ".join(str(exc).split())}\n')
         return 2
@@ -172,8 +300,22 @@ def main(argv: list[str] | None = None) -> int:
                                            4)
     for s in times:
         if s not in ('total', 'fws_query_lp'):
-            key = 'fws_margin_step' if s == 'fws_margin' else s
+            key = {'fws_margin': 'fws_margin_step', 'regions': 'regions_stage',
+                   'regions_fws_cwc': 'regions'}.get(s, s)
             summary[f'{key}_ms'] = round(median[s], 4)
+    if times.get('regions_baseline', np.zeros(0)).size:
+        summary['regions_speedup'] = round(median['regions_baseline'] / median['regions_fws_cwc'],
+                                           1)
+        if not args.json_only:     # a table row: the ratio of the two medians
+            sys.stdout.write(f'{"regions_speedup":<20}{summary["regions_speedup"]:>12.1f}  '
+                             '(x: iterative projection / exact slices, CoM regions)\n')
+    batch, loop = batch_rates(evaluator, args.samples, seed=args.seed, spread=args.spread,
+                              stance=stance)
+    summary['batch_states_per_s'] = round(batch, 1)
+    summary['loop_states_per_s'] = round(loop, 1)
+    if not args.json_only:
+        sys.stdout.write(f'evaluate_many: {batch:.0f} states/s (a loop of evaluate: '
+                         f'{loop:.0f} states/s), per-cycle sets, no FWS\n')
     sys.stdout.write(json.dumps(summary) + '\n')
     return 0
 

@@ -22,7 +22,15 @@ Output: the :meth:`~awp_ros.evaluation.result.FeasibilityResult.to_dict` documen
 ``com``, ``wrench``, ``legs``, ``awp``/``fwp``/``fws`` with ``margin``, ``normal``,
 ``dimension``, ``affine_residual``, ``feasible``, ``halfspaces``; ``fws.directional``;
 ``status``, ``warnings``, ``timings_ms``: per stage [ms], ``total`` the per-cycle evaluation
-without the FWS, and ``fws`` / ``fws_directional`` / ``fws_margin`` when it is computed).
+without the FWS, and ``fws`` / ``fws_directional`` / ``fws_margin`` / ``feasible_region``
+when it is computed). The CoM regions (world-aligned x/y, origin the CoM, [m]):
+``feasible_region`` (slice of the FWS; ``null`` with ``--no-fws``), ``support_region``
+(slice of the CWC), ``fwp_region`` (slice of the FWP), each ``{"dimension": 2 | 1 | 0 | -1,
+"vertices": [[x, y], ...], "halfspaces": [[a_x, a_y, b], ...], "margin": m, "area": a}``
+(vertices counter-clockwise; a segment for two stance legs, a point for one, ``[]`` and
+``"margin": null`` when empty); ``com_velocity`` [m/s] and ``capture_point`` [m, relative
+to the CoM] when ``base_twist`` is given (else ``null``), ``capture_point_margin`` [m]
+(its signed distance to the feasible region, ``null`` without it).
 Non-finite numbers are written as ``null``.
 Exit status: 0 on success, 2 on bad input (one line on stderr naming it), 1 on an internal
 error.

@@ -75,15 +75,17 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument('--play', action='store_true',
                    help='publish IN_BAG onto DDS at the recorded pace instead')
     g = p.add_argument_group('offline replay')
-    g.add_argument('--robot', default='hyq', help='robot config name (default: %(default)s)')
-    g.add_argument('--params-file', help='node parameters YAML (default: config/<robot>.yaml)')
+    g.add_argument('--robot', default='hyq', help='robot config name or parameters YAML '
+                   'path (default: %(default)s)')
+    g.add_argument('--params-file', help='node parameters YAML (default: the --robot file)')
     g.add_argument('-p', '--param', action='append', type=parse_override, default=[],
                    metavar='KEY=VALUE', help='parameter override, e.g. -p use_imu=true '
                    '(repeatable)')
     g.add_argument('--joint-states', default='/joint_states', metavar='TOPIC',
                    help='joint-state topic in IN_BAG (default: %(default)s)')
     g.add_argument('--contacts', default='/contacts', metavar='TOPIC',
-                   help='contact-state topic in IN_BAG (default: %(default)s)')
+                   help='contact-state topic in IN_BAG (default: %(default)s; not read with '
+                   '-p contact_source=effort or all)')
     g.add_argument('--imu', default='/imu', metavar='TOPIC',
                    help='imu topic in IN_BAG (default: %(default)s)')
     g.add_argument('--node-name', default='awp_node',

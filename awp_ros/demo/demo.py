@@ -2,9 +2,13 @@
 ``awp_demo``: the main job. awp_node on HyQ, fed a recorded crawl/trot, margins live.
 
 Steps: start ``awp_node`` as its own process (``--params-file config/<robot>.yaml``); play
-the default bag (``config/hyq_gait.mcap``: 500 Hz joint states and contacts, 100 Hz IMU;
-a static crawl then a trot) onto DDS at the recorded pace; print a table (time, stance
-feet, FWP margin, feasibility) while the node answers; record the inputs as the node saw
+the default bag (``config/hyq_gait.mcap``: 500 Hz joint states, contacts and IMU; a
+static crawl, an intended infeasible lurch, then a trot) onto DDS at the recorded pace;
+print a table (time, stance feet, FWP margin, feasibility, and beside them those of the
+quasi-static wrench: the same
+pipeline run offline over the bag, while the node starts) while the node answers, then
+how many joint states each judges infeasible inside and outside the bag's intended
+infeasible window (:mod:`awp_ros.demo.table`); record the inputs as the node saw
 them and every output of the node into ``OUT_DIR/awp_demo.mcap`` (Foxglove and RViz open
 it); on exit (end of the bag or Ctrl-C) plot the AWP / FWP / FWS margins over time with the
 stance phases shaded into ``OUT_DIR/awp_demo_margins.png``, and print both paths.
@@ -35,15 +39,19 @@ from awp_ros.bags.writer import BagWriter, remove_path
 from awp_ros.cli.support import run_main
 from awp_ros.demo.plot import MarginSeries, plot_margins
 from awp_ros.demo.recorder import discover_outputs, Recorder
-from awp_ros.demo.table import ReportTable, TABLE_HEADER
-from awp_ros.errors import AwpError, BagError
+from awp_ros.demo.regions_plot import demo_regions_plot
+from awp_ros.demo.table import (comparison_lines, intended_windows, QuasiStatic, ReportTable,
+                                TABLE_HEADER, TABLE_LEGEND)
+from awp_ros.errors import AwpError, BagError, ConfigError
 from awp_ros.gait.bag import default_bag_path
 from awp_ros.node.launcher import start_node, stop_node
-from awp_ros.robot.config import find_parameters_file, load_config
+from awp_ros.robot.config import find_parameters_file, load_config, srdf_standing_posture
 
 __all__ = ['main']
 
 PROG = 'awp_demo'
+#: Report statuses of an evaluated joint state (FeasibilityReport STATUS_OK, STATUS_WARNING).
+_EVALUATED = (0, 1)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -91,10 +99,9 @@ def _run(args) -> int:
 
     if not args.rate > 0:
         raise BagError(f'--rate must be > 0, got {args.rate!r}')
-    bag = Path(args.bag) if args.bag else default_bag_path()
+    params, feet, bag = _robot_and_bag(args, say=lambda text: None if args.quiet else (
+        sys.stdout.write(text + '\n'), sys.stdout.flush()))
     info = bag_info(bag)
-    params = find_parameters_file(args.robot)
-    feet = load_config(params).feet
     inputs = {topic: msgtype for topic, msgtype in INPUT_TOPICS.values()
               if topic in info.topics}
     if '/joint_states' not in inputs:
@@ -123,6 +130,15 @@ def _run(args) -> int:
     spinner = threading.Thread(target=executor.spin, daemon=True)
     interrupted = False
     try:
+        # While the node starts: the same pipeline offline with motion=quasi_static (no
+        # accelerations), beside the node's measured-wrench margins.
+        say('quasi-static reference: the same pipeline offline over the bag, while the node '
+            'starts ...')
+        quasi = QuasiStatic.from_bag(bag, params, overrides={'use_imu': '/imu' in inputs},
+                                     duration_s=args.duration)
+        windows = intended_windows(bag)
+        say(f'quasi-static reference: {len(quasi.reports)} joint states through the same '
+            f'pipeline offline in {quasi.wall_s:.1f} s')
         outputs = discover_outputs(node, args.node_name, args.startup_timeout, proc)
         if not outputs:
             raise _NodeFailed(proc, out_dir / 'awp_node.log')
@@ -134,9 +150,11 @@ def _run(args) -> int:
                 if topic not in skip:
                     rec.subscribe(topic, msgtype)
             spinner.start()
-            table = ReportTable(rec, feet, info.start_ns, args.table_period, say)
+            table = ReportTable(rec, feet, info.start_ns, args.table_period, say,
+                                quasi_static=quasi, windows=windows)
             stop = threading.Event()
             printer = threading.Thread(target=table.run, args=(stop,), daemon=True)
+            say(TABLE_LEGEND)
             say(TABLE_HEADER)
             printer.start()
             rec.start_clock(info.start_ns)
@@ -165,11 +183,13 @@ def _run(args) -> int:
             rclpy.shutdown()
     summary = summarize_reports(reports)
     lost = expected - len(reports)
-    series = MarginSeries.from_reports(reports, feet)
+    series = MarginSeries.from_reports(reports, feet, quasi, windows)
     title = f'awp_node on {params.stem}: {bag.name}' + (' (interrupted)' if interrupted
                                                         else '')
     plot_margins(series, out_png, title=title)
+    demo_regions_plot(out_bag, out_dir / 'awp_demo_regions.png', bag, args.node_name, title=title)
     print(summary.to_text())
+    print('\n'.join(comparison_lines(reports, quasi, windows, info.start_ns)))
     if lost > 0 and not interrupted:
         print(f'{lost} of {expected} joint states got no report in time: the node could not '
               'keep up on this machine (try --rate 0.5)')
@@ -179,7 +199,106 @@ def _run(args) -> int:
     if not reports:
         sys.stderr.write(f'{PROG}: no report received; see {out_dir / "awp_node.log"}\n')
         return 1
+    if not interrupted and not any(r.status in _EVALUATED for r in reports):
+        last = reports[-1].status_message.splitlines()[0][:300] if reports else ''
+        sys.stderr.write(f'{PROG}: the node evaluated none of the {len(reports)} joint states '
+                         f'(last reason: {last}); see {out_dir / "awp_node.log"}\n')
+        return 1
     return 130 if interrupted else 0
+
+
+def _robot_and_bag(args, say) -> tuple[Path, tuple[str, ...], Path]:
+    """
+    Return the robot's parameters file, its feet, and the bag to play into its node.
+
+    The robot's model is built first, so that a bad config (unknown foot, joint, key) stops
+    the demo in one line before anything starts. ``--bag``: that bag, if its joint states
+    and contacts name the robot's joints and feet. Else the packaged default bag when it
+    is this robot's (HyQ), or a crawl/lurch/trot bag generated for the robot into
+    ``--out-dir`` (``<robot_name>_gait.mcap``, as ``python -m awp_ros.gait --robot``
+    writes it; a config without ``standing_posture`` takes the SRDF's ``standing`` state).
+
+    :raises ConfigError: a bad config, a bag of another robot, or a robot the gait
+        generator cannot walk (the message says why).
+    """
+    from awp_ros.robot.model import RobotModel
+
+    params = find_parameters_file(args.robot)
+    config = load_config(params)
+    model = RobotModel(config)
+    if args.bag:
+        bag = Path(args.bag)
+        mismatch = _bag_mismatch(bag, model)
+        if mismatch:
+            raise ConfigError(f'bag {str(bag)!r} is not a bag of robot {config.robot_name!r} '
+                              f'({params}): {mismatch}; leave --bag out to play a gait '
+                              'generated for it')
+        return params, config.feet, bag
+    bag = default_bag_path()
+    if not _bag_mismatch(bag, model):
+        return params, config.feet, bag
+    return params, config.feet, _generate_bag(config, model, Path(args.out_dir), say)
+
+
+def _bag_mismatch(bag: Path, model) -> str:
+    """Return why a bag's first joint state and contacts do not fit a model, or ''."""
+    from awp_ros_msgs.msg import ContactState
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import JointState
+
+    info = bag_info(bag)
+    reasons = []
+    for topic, mtype in (('/joint_states', JointState), ('/contacts', ContactState)):
+        if topic not in info.topics:
+            continue
+        first = next(iter(read_bag(bag, topics=[topic])), None)
+        if first is None:
+            continue
+        msg = deserialize_message(first.data, mtype)
+        if topic == '/joint_states':
+            lacking = [j for j in model.joint_names if j not in set(msg.name)]
+            if lacking:
+                reasons.append(f'its joint states lack the joints {lacking[:6]}'
+                               f'{" ..." if len(lacking) > 6 else ""} (they name '
+                               f'{list(msg.name)[:6]}{" ..." if len(msg.name) > 6 else ""})')
+        else:
+            unknown = [f for f in msg.names if f not in model.config.feet]
+            if unknown:
+                reasons.append(f'its contacts name feet {unknown} (the feet are '
+                               f'{list(model.config.feet)})')
+    return '; '.join(reasons)
+
+
+def _generate_bag(config, model, out_dir: Path, say) -> Path:
+    """Generate the robot's gait bag into ``out_dir``; ConfigError when it cannot be."""
+    from dataclasses import replace
+
+    from awp_ros.gait.bag import DEFAULT_IMU_RATE_HZ, write_gait_bag
+    from awp_ros.gait.generator import generate_gait
+    from awp_ros.robot.model import resolve_urdf
+
+    name = config.robot_name
+    if model.standing_q is None:
+        kind, source = resolve_urdf(config.urdf, config.base_dir)
+        found = srdf_standing_posture(source, model.joint_names) if kind == 'file' else None
+        if found is None:
+            raise ConfigError(f'robot {name!r} has no standing_posture, and no SRDF beside '
+                              "its URDF has a 'standing' state: the generated gait starts "
+                              'from it; add standing_posture to the config, or give --bag')
+        config = replace(config, standing_posture=found[0])
+        model = None
+    out_dir.mkdir(parents=True, exist_ok=True)
+    out = out_dir / f'{name}_gait.mcap'
+    remove_path(out)
+    say(f'{PROG}: generating a crawl/lurch/trot bag for {name!r} (the default bag is of '
+        f'HyQ) into {out}')
+    try:
+        samples = generate_gait(config, model=model)
+        write_gait_bag(samples, out, imu_rate_hz=DEFAULT_IMU_RATE_HZ)
+    except AwpError as exc:
+        raise ConfigError(f'cannot generate a gait bag for robot {name!r}: {exc}; give a bag '
+                          'of it with --bag') from exc
+    return out
 
 
 def _joint_states_in(bag, duration: float | None, info) -> int:

@@ -38,7 +38,7 @@ an offline replay of the same messages in the same order give identical estimate
 
 from __future__ import annotations
 
-from collections import deque
+from bisect import bisect_right
 from dataclasses import dataclass
 import math
 
@@ -159,8 +159,8 @@ class MotionEstimator:
         self._dv = ButterworthDifferentiator(self._n, self.cutoff_hz, max_gap_s=max_gap_s)
         self._dq = ButterworthDifferentiator(self._n, self.cutoff_hz, max_gap_s=max_gap_s)
         self._imu: ImuConverter | None = None
-        self._imus: deque[BaseMotion] = deque(maxlen=history)
-        self._odoms: deque[OdometryReading] = deque(maxlen=history)
+        self._imus = _History(history)
+        self._odoms = _History(history)
         if imu_frame is not None:
             self.set_imu_frame(imu_frame)
 
@@ -212,11 +212,11 @@ class MotionEstimator:
             raise ConfigError('add_imu before the IMU frame is known: pass imu_frame or '
                               'call set_imu_frame(header.frame_id)')
         imus = self._imus
-        if imus and stamp_ns < imus[-1].stamp_ns:
+        if imus and stamp_ns < imus.last_stamp_ns:
             imus.clear()                       # time went backwards: a new run
         base_orientation = None
         if orientation is None:
-            odom = _newest_at_or_before(self._odoms, stamp_ns, self._odom_age_ns)
+            odom = self._odoms.newest_at_or_before(stamp_ns, self._odom_age_ns)
             if odom is not None:
                 base_orientation = odom.orientation
         motion = imu.update(stamp_ns, orientation, angular_velocity, linear_acceleration,
@@ -247,7 +247,7 @@ class MotionEstimator:
                                   _finite(linear_velocity, 3, 'linear_velocity'),
                                   _finite(angular_velocity, 3, 'angular_velocity'))
         odoms = self._odoms
-        if odoms and stamp_ns < odoms[-1].stamp_ns:
+        if odoms and stamp_ns < odoms.last_stamp_ns:
             odoms.clear()
         odoms.append(reading)
         return reading
@@ -275,8 +275,8 @@ class MotionEstimator:
         settled = self._dv.settled and (measured or self._dq.settled)
         twist = np.zeros(6)
         base_acc = np.zeros(6)
-        imu = _newest_at_or_before(self._imus, stamp_ns, self._imu_age_ns)
-        odom = _newest_at_or_before(self._odoms, stamp_ns, self._odom_age_ns)
+        imu = self._imus.newest_at_or_before(stamp_ns, self._imu_age_ns)
+        odom = self._odoms.newest_at_or_before(stamp_ns, self._odom_age_ns)
         if imu is not None:
             orientation = imu.orientation
             source = imu.orientation_source
@@ -300,12 +300,51 @@ class MotionEstimator:
                               settled)
 
 
-def _newest_at_or_before(readings: deque, stamp_ns: int, max_age_ns: int):
-    """Return the newest reading with stamp in [stamp - max_age, stamp], else None."""
-    for reading in reversed(readings):
-        if reading.stamp_ns <= stamp_ns:
-            return reading if stamp_ns - reading.stamp_ns <= max_age_ns else None
-    return None
+class _History:
+    """
+    The last ``maxlen`` readings of one input, in stamp order, found by bisection.
+
+    A node lagging behind its joint states holds the readings of its whole lag; the pairing
+    costs O(log n), not O(lag).
+    """
+
+    def __init__(self, maxlen: int) -> None:
+        self.maxlen = maxlen
+        self._stamps: list[int] = []
+        self._readings: list = []
+        self._head = 0
+
+    def __len__(self) -> int:
+        return len(self._stamps) - self._head
+
+    @property
+    def last_stamp_ns(self) -> int:
+        """Return the stamp of the newest reading [ns] (the history must not be empty)."""
+        return self._stamps[-1]
+
+    def clear(self) -> None:
+        """Forget every reading."""
+        self._stamps.clear()
+        self._readings.clear()
+        self._head = 0
+
+    def append(self, reading) -> None:
+        """Add a reading not older than the newest one; drop the oldest beyond ``maxlen``."""
+        self._stamps.append(reading.stamp_ns)
+        self._readings.append(reading)
+        if len(self) > self.maxlen:
+            self._head += 1
+            if self._head > 64 and 2 * self._head > len(self._stamps):
+                del self._stamps[:self._head]
+                del self._readings[:self._head]
+                self._head = 0
+
+    def newest_at_or_before(self, stamp_ns: int, max_age_ns: int):
+        """Return the newest reading with stamp in [stamp - max_age, stamp], else None."""
+        i = bisect_right(self._stamps, stamp_ns, self._head) - 1
+        if i < self._head or stamp_ns - self._stamps[i] > max_age_ns:
+            return None
+        return self._readings[i]
 
 
 def _finite(values, n: int, name: str) -> np.ndarray:

@@ -18,35 +18,42 @@ whole-robot CoM; SI units). Stage names are the keys of ``timings_ms`` [ms]:
    is a parallelepiped (or a singular leg's flat image), else the exact Minkowski sum.
 6. ``cwc_fwp``: the contact wrench cone and FWP = AWP ∩ CWC (the seed's FWP).
 7. ``margins``: signed Euclidean margins and witnesses of ``w`` for AWP and FWP.
+8. ``regions``: the CoM regions (:func:`~awp_ros.wrench.com_region.com_region`, exact
+   slices of the H-reps at ``w``'s force and moment): ``support_region`` of the CWC (kept
+   as ``result.cwc``), ``fwp_region`` of the FWP, and the capture point when the state has
+   a ``base_twist`` (the CoM velocity, Pinocchio's ``vcom`` of the model stage).
 
-``total`` is the wall time of the whole per-cycle evaluation, the seven stages back to back:
+``total`` is the wall time of the whole per-cycle evaluation, the eight stages back to back:
 what ``evaluate(state, fws=False)`` costs. The feasible wrench set
 :math:`\sum_k L_k \mathcal F_{\mu,k}` is timed apart, as it may run at a lower rate
 (:meth:`FeasibilityEvaluator.add_fws`): ``fws`` (its exact H-rep, including the
 friction-bounded polytopes when not yet computed), ``fws_directional`` (how
-far ``w`` can move along each wrench axis inside it) and ``fws_margin`` (its signed Euclidean
-margin). FWS ⊆ FWP ⊆ AWP: the FWP only asks that *some* force distribution respects the
-torques and *some* (possibly other) distribution respects friction; the FWS asks for one
-distribution that respects both, per leg.
+far ``w`` can move along each wrench axis inside it), ``fws_margin`` (its signed Euclidean
+margin) and ``feasible_region`` (its CoM region and the capture point's margin to it).
+FWS ⊆ FWP ⊆ AWP: the FWP only asks that *some* force distribution respects the torques and
+*some* (possibly other) distribution respects friction; the FWS asks for one distribution
+that respects both, per leg.
 
 The result classes live in :mod:`awp_ros.evaluation.result` and are re-exported here.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 from functools import partial
 import time
 
 import numpy as np
 
-from awp_ros.errors import ConfigError, InputError
+from awp_ros.errors import ConfigError, GeometryError, InputError
 from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
 from awp_ros.geometry.margin import directional_margins, polytope_margin
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.robot.model import RobotModel
 from awp_ros.robot.state import resolve_state, RobotState
+from awp_ros.wrench.com_region import com_region, ComRegion
 from awp_ros.wrench.contact_forces import measured_contact_forces
 from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone
 from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
@@ -58,7 +65,7 @@ __all__ = ['FeasibilityEvaluator', 'STAGES']
 
 #: The per-cycle stages of :meth:`FeasibilityEvaluator.evaluate`, in order.
 STAGES = ('validate', 'model', 'force_polytopes', 'friction_polytopes', 'awp', 'cwc_fwp',
-          'margins')
+          'margins', 'regions')
 
 
 class FeasibilityEvaluator:
@@ -95,6 +102,7 @@ class FeasibilityEvaluator:
         self._tau_max = {f: leg.tau_max for f, leg in legs.items()}
         self._rows_cache: tuple | None = None
         self._limit_cache: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray]] = {}
+        self._gravity = float(np.linalg.norm(self.model.model.gravity.linear))  # [m/s^2]
 
     @property
     def feet(self) -> tuple[str, ...]:
@@ -109,7 +117,8 @@ class FeasibilityEvaluator:
         return RobotState(joint_positions=joints, **kw)
 
     def evaluate(self, state: RobotState, *, fws: bool = True,
-                 wrench: np.ndarray | None = None) -> FeasibilityResult:
+                 wrench: np.ndarray | None = None,
+                 base_velocity_known: bool = True) -> FeasibilityResult:
         """
         Evaluate one state (see the module docstring for the stages).
 
@@ -119,6 +128,9 @@ class FeasibilityEvaluator:
         :param wrench: a wrench ``[f; tau]`` [N, N.m] (about the CoM, world-aligned axes) whose
             margins to report instead of the state's gravito-inertial wrench, e.g. the
             centroidal wrench a planner or an MPC intends; the sets are the state's.
+        :param base_velocity_known: whether the linear part of ``state.base_twist`` is
+            measured (odometry): only then are the CoM velocity and the capture point
+            computed (False: a twist whose linear velocity is a placeholder zero).
         :return: the :class:`FeasibilityResult`.
         :raises InputError: invalid state (the message names the bad value).
         """
@@ -136,6 +148,10 @@ class FeasibilityEvaluator:
             w = np.asarray(wrench, dtype=float)
             if w.shape != (6,) or not np.all(np.isfinite(w)):
                 raise InputError(f'wrench must be 6 finite numbers [N, N.m], got {wrench!r}')
+        # The CoM velocity (world axes), when the base's is known: Pinocchio's vcom, which
+        # the centroidal momentum of the model stage filled (v holds the base twist).
+        vcom = model.data.vcom[0].copy() \
+            if state.base_twist is not None and base_velocity_known else None
         t2 = clock()
         forces, stacked = self._force_polytopes(s.stance, kin.J, kin.bias, warnings)
         t3 = clock()
@@ -155,7 +171,7 @@ class FeasibilityEvaluator:
             cwc = contact_wrench_cone(p, s.normals, s.mus, cfg.pyramid_sides)
             fwp = feasible_wrench_polytope(awp, cwc)
         else:
-            awp = fwp = _origin_set()
+            awp = fwp = cwc = _origin_set()
             t5 = clock()
         t6 = clock()
         tol = self.feasibility_tol
@@ -175,14 +191,21 @@ class FeasibilityEvaluator:
                                 forces[k].meta['near_singular'])
                 for k, foot in enumerate(s.stance)}
         t7 = clock()
+        support = _region(cwc, w, 'support region', warnings)
+        fwp_r.region = _region(fwp, w, 'FWP region', warnings)
+        capture = _capture_point(vcom, p, self._gravity)
+        fwp_r.capture_point_margin = _point_margin(fwp_r.region, capture)
+        t8 = clock()
         timings = {'validate': 1e3 * (t1 - t0), 'model': 1e3 * (t2 - t1),
                    'force_polytopes': 1e3 * (t3 - t2), 'friction_polytopes': 1e3 * (t4 - t3),
                    'awp': 1e3 * (t5 - t4), 'cwc_fwp': 1e3 * (t6 - t5),
-                   'margins': 1e3 * (t7 - t6), 'total': 1e3 * (t7 - t0)}
+                   'margins': 1e3 * (t7 - t6), 'regions': 1e3 * (t8 - t7),
+                   'total': 1e3 * (t8 - t0)}
         result = FeasibilityResult(cfg.robot_name, s.stance, kin.mass, kin.com, w, legs,
                                    awp_r, fwp_r, None, warnings, timings,
-                                   'quasi_static' if s.v is None and s.a is None else 'measured',
-                                   measured)
+                                   'quasi_static' if s.a is None else 'measured',
+                                   measured, cwc=cwc, support_region=support,
+                                   com_velocity=vcom, capture_point=capture)
         if fws:
             self.add_fws(result)
         return result
@@ -192,9 +215,10 @@ class FeasibilityEvaluator:
         Compute the FWS of an evaluated state and store it in ``result.fws``.
 
         Lets a caller run :meth:`evaluate` with ``fws=False`` every cycle and add the FWS
-        (exact H-rep, directional margins, Euclidean margin) at a lower rate. Adds the
-        ``fws``, ``fws_directional`` and ``fws_margin`` timings [ms] (``total`` stays the
-        per-cycle evaluation without them).
+        (exact H-rep, directional margins, Euclidean margin, the feasible region and the
+        capture point's margin to it) at a lower rate. Adds the ``fws``,
+        ``fws_directional``, ``fws_margin`` and ``feasible_region`` timings [ms] (``total``
+        stays the per-cycle evaluation without them).
 
         :return: ``result``, updated in place.
         """
@@ -214,11 +238,15 @@ class FeasibilityEvaluator:
             S, w, feasibility_tol=tol, hull_tol=self.hull_tol))
         t3 = clock()
         fws_r.directional = {axis: (float(a), float(b)) for axis, a, b in zip(AXES, plus, minus)}
+        fws_r.region = _region(S, w, 'feasible region', result.warnings)
+        fws_r.capture_point_margin = _point_margin(fws_r.region, result.capture_point)
+        t4 = clock()
         result.fws = fws_r
         tm = result.timings_ms
         tm['fws'] = 1e3 * (t1 - t0)
         tm['fws_directional'] = 1e3 * (t2 - t1)
         tm['fws_margin'] = 1e3 * (t3 - t2)
+        tm['feasible_region'] = 1e3 * (t4 - t3)
         return result
 
     def with_wrench(self, result: FeasibilityResult, wrench: np.ndarray, *,
@@ -237,17 +265,26 @@ class FeasibilityEvaluator:
         fws = result.fws if fws is None else fws
         tol, hull_tol = self.feasibility_tol, self.hull_tol
 
-        def margin(s: WrenchSetResult) -> WrenchSetResult:
-            return WrenchSetResult.from_margin(s.name, s.polytope, polytope_margin(
+        warnings = list(result.warnings)
+
+        def margin(s: WrenchSetResult, region: str = '') -> WrenchSetResult:
+            out = WrenchSetResult.from_margin(s.name, s.polytope, polytope_margin(
                 s.polytope, w, feasibility_tol=tol, hull_tol=hull_tol))
+            if region:          # the CoM region at this wrench's force and moment
+                out.region = _region(s.polytope, w, region, warnings)
+                out.capture_point_margin = _point_margin(out.region, result.capture_point)
+            return out
 
         fws_r = None
         if fws is not None:
-            fws_r = margin(fws)
+            fws_r = margin(fws, 'feasible region')
             plus, minus = directional_margins(fws.polytope, w, feasibility_tol=tol)
             fws_r.directional = {a: (float(x), float(y)) for a, x, y in zip(AXES, plus, minus)}
-        return replace(result, wrench=w, awp=margin(result.awp), fwp=margin(result.fwp),
-                       fws=fws_r)
+        support = None if result.cwc is None else _region(result.cwc, w, 'support region',
+                                                          warnings)
+        return replace(result, wrench=w, awp=margin(result.awp),
+                       fwp=margin(result.fwp, 'FWP region'), fws=fws_r,
+                       support_region=support, warnings=warnings)
 
     # -- stages ------------------------------------------------------------------------
 
@@ -314,8 +351,120 @@ class FeasibilityEvaluator:
             self._limit_cache[stance] = lim
         return lim
 
+    # -- batches -----------------------------------------------------------------------
+
+    def evaluate_many(self, states: Sequence[RobotState], *, fws: bool = False,
+                      wrenches: np.ndarray | Sequence | None = None) -> list[FeasibilityResult]:
+        """
+        Evaluate many states, e.g. a planner's candidate postures; one result per state.
+
+        Each result equals ``evaluate(states[i], fws=fws, wrench=wrenches[i])``. The states
+        are taken grouped by their contacts (stance, normals, friction coefficients), so
+        that the pyramid rows cached between calls are computed once per group, not once
+        per change; the results come back in the order of ``states``. Within one state the
+        stages are already vectorised across legs and facet candidates; across states the
+        per-state geometry (zonotope facets, CWC, intersections) has different shapes and
+        is not batched (the draft ``docs/drafts/planners.md`` has the measurements).
+
+        :param states: the robot states.
+        :param fws: also compute each state's FWS (~10 ms per state).
+        :param wrenches: None (each state's gravito-inertial wrench), one wrench ``(6,)``
+            for all, or one per state ``(len(states), 6)`` [N, N.m] (about the CoM,
+            world-aligned axes).
+        :return: the :class:`FeasibilityResult` of each state, in order.
+        :raises InputError: wrenches of the wrong shape or not finite, or an invalid state
+            (the message names its index and the bad value); nothing is returned then.
+        """
+        states = list(states)
+        n = len(states)
+        W = None
+        if wrenches is not None:
+            W = np.asarray(wrenches, dtype=float)
+            if W.shape == (6,):
+                W = np.broadcast_to(W, (n, 6))
+            if W.shape != (n, 6) or not np.all(np.isfinite(W)):
+                raise InputError(f'wrenches must be 6 finite numbers [N, N.m] or one such row '
+                                 f'per state ({n}, 6), got shape {W.shape}')
+        order = sorted(range(n), key=lambda i: _contacts_key(states[i]))
+        results: list[FeasibilityResult | None] = [None] * n
+        for i in order:
+            try:
+                results[i] = self.evaluate(states[i], fws=fws,
+                                           wrench=None if W is None else W[i])
+            except InputError as exc:
+                raise InputError(f'state {i}: {exc}') from exc
+        return results
+
 
 def _origin_set() -> Polytope:
     """Return {0} in R^6 (no stance leg: every wrench set)."""
     return Polytope(0, np.zeros((1, 6)), np.zeros((0, 6)), np.zeros(0), np.zeros(6),
                     np.zeros((6, 0)))
+
+
+def _region(P: Polytope, w: np.ndarray, name: str, warnings: list[str]) -> ComRegion | None:
+    """
+    Return the CoM region of a wrench set at the force and moment of ``w`` [N, N.m].
+
+    A region that is not defined (no vertical force: free fall; a slice that is not
+    bounded) or whose computation fails is None, with a warning naming the reason.
+    """
+    try:
+        return com_region(P, w[:3], w[3:])
+    except (InputError, GeometryError) as exc:
+        warnings.append(f'{name} not computed: {exc}')
+        return None
+
+
+def _capture_point(vcom: np.ndarray | None, p: np.ndarray, gravity: float
+                   ) -> np.ndarray | None:
+    r"""
+    Return the instantaneous capture point relative to the CoM (2,) [m], or None.
+
+    .. math:: \xi - c = \dot c_{xy} / \omega_0, \quad \omega_0 = \sqrt{g / h}
+
+    :param vcom: the CoM velocity ``c'`` (3,) [m/s], world axes (None: unknown).
+    :param p: (K, 3) stance feet relative to the CoM [m]: ``h = -mean(p_z)`` is the CoM
+        height above their mean height (None without a foot or for ``h <= 0``).
+    :param gravity: ``g`` [m/s^2].
+    """
+    if vcom is None or not p.shape[0]:
+        return None
+    h = -float(np.mean(p[:, 2]))
+    if not h > 0.0:
+        return None
+    return vcom[:2] * np.sqrt(h / gravity)
+
+
+def _point_margin(region: ComRegion | None, x: np.ndarray | None) -> float:
+    """
+    Return the signed distance [m] of the CoM offset ``x`` (2,) to a CoM region.
+
+    Positive inside a polygon (the distance to its nearest edge line), minus the distance
+    to the region outside it (always for a segment or a point); NaN when ``x`` or the
+    region is None or the region is empty.
+    """
+    if region is None or x is None or region.is_empty:
+        return float('nan')
+    if region.dimension == 2:
+        inside = float(np.min(region.b - region.A @ x))
+        if inside >= 0.0:
+            return inside
+    V = region.vertices - x
+    E = np.roll(V, -1, axis=0) - V
+    ee = np.einsum('ij,ij->i', E, E)
+    t = np.clip(-np.einsum('ij,ij->i', V, E) / np.where(ee > 0.0, ee, 1.0), 0.0, 1.0)
+    Q = V + t[:, None] * E
+    return -float(np.sqrt(np.min(np.einsum('ij,ij->i', Q, Q))))
+
+
+def _contacts_key(state: RobotState) -> tuple:
+    """Return a sort key of a state's contacts (stance, normals, friction); ties keep order."""
+    def items(mapping) -> tuple:
+        try:
+            return tuple(sorted((str(k), repr(v)) for k, v in dict(mapping).items()))
+        except (TypeError, ValueError):
+            return ()
+    stance = () if state.stance is None else tuple(str(f) for f in state.stance)
+    return (state.stance is None, stance, items(state.normals or {}),
+            repr(state.friction_coefficient), items(state.friction_coefficients or {}))

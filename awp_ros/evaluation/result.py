@@ -17,12 +17,16 @@ import numpy as np
 
 from awp_ros.geometry.margin import SetMargin
 from awp_ros.geometry.polytope import Polytope
+from awp_ros.wrench.com_region import ComRegion
 from awp_ros.wrench.contact_forces import MeasuredForces
 
-__all__ = ['AXES', 'FeasibilityResult', 'LegResult', 'WrenchSetResult']
+__all__ = ['AXES', 'FeasibilityResult', 'LegResult', 'REGIONS', 'WrenchSetResult',
+           'region_dict']
 
 #: Names of the wrench axes, in the order of every 6-vector: force [N], moment [N.m].
 AXES = ('fx', 'fy', 'fz', 'mx', 'my', 'mz')
+#: The CoM regions of a result (attributes of :class:`FeasibilityResult`, JSON keys).
+REGIONS = ('feasible_region', 'support_region', 'fwp_region')
 
 
 @dataclass
@@ -79,7 +83,12 @@ class WrenchSetResult:
     to ``w``); ``dimension``: affine dimension (-1 empty, 0 for no stance leg, 3 for one leg,
     5 for two, 6 otherwise); ``affine_residual``: distance of ``w`` to the hull;
     ``feasible``: ``margin >= -feasibility_tol``;
-    ``directional``: axis -> (plus, minus) extra admissible force [N] / moment [N.m].
+    ``directional``: axis -> (plus, minus) extra admissible force [N] / moment [N.m];
+    ``region``: the set's CoM region for the evaluated force and moment
+    (:func:`~awp_ros.wrench.com_region.com_region`: the FWP region of the FWP, the feasible
+    region of the FWS; None when not computed); ``capture_point_margin``: signed distance
+    [m] of the instantaneous capture point to ``region`` (NaN without a CoM velocity or a
+    non-empty region).
     """
 
     name: str
@@ -91,6 +100,8 @@ class WrenchSetResult:
     feasible: bool
     margin_in_hull: float
     directional: dict[str, tuple[float, float]] | None = None
+    region: ComRegion | None = None
+    capture_point_margin: float = math.nan
 
     @classmethod
     def from_margin(cls, name: str, polytope: Polytope, m: SetMargin) -> WrenchSetResult:
@@ -135,9 +146,23 @@ class FeasibilityResult:
     stance foot (config order) to its :class:`LegResult`; ``fws`` is None when not requested.
     ``timings_ms`` [ms]: one entry per stage, ``total`` (the per-cycle evaluation without the
     FWS) and, once the FWS is computed, ``fws``, ``fws_directional`` and ``fws_margin``.
-    ``motion``: ``'measured'`` when the state carried motion (velocities or accelerations:
-    the wrench and the leg biases include the dynamics terms), else ``'quasi_static'``.
+    ``motion``: ``'measured'`` when the state carried accelerations (the wrench and the leg
+    biases include the dynamics terms), else ``'quasi_static'`` (no accelerations; joint
+    velocities, when given, still enter the bias torques and the velocity-product terms).
     ``measured``: the contact forces from the joint efforts, when the state had efforts.
+
+    CoM regions (:mod:`awp_ros.wrench.com_region`; world-aligned x/y, origin the current
+    CoM, [m]; each a :class:`~awp_ros.wrench.com_region.ComRegion` with ``vertices``
+    (counter-clockwise), ``A``, ``b``, ``dimension`` (2 polygon, 1 segment: two stance legs,
+    0 point: one leg, -1 empty) and the signed ``margin`` of the CoM, NaN when empty):
+    ``support_region`` (slice of the CWC ``cwc``: friction only) and ``fwp_region`` (slice
+    of the FWP) every cycle, ``feasible_region`` (slice of the FWS: torque limits and
+    friction with one force distribution) with the FWS; each None when not computed.
+    ``com_velocity``: ``c'`` (3,) [m/s], world axes, when the state had a ``base_twist``
+    (else None); ``capture_point``: the instantaneous capture point ``c' / omega_0``
+    (``omega_0 = sqrt(g / h)``, ``h`` the CoM height above the stance feet's mean height)
+    relative to the CoM (2,) [m], or None; ``capture_point_margin``: its signed distance
+    [m] to the feasible region (NaN without it).
     """
 
     robot: str
@@ -153,6 +178,25 @@ class FeasibilityResult:
     timings_ms: dict[str, float]
     motion: str = 'quasi_static'
     measured: MeasuredForces | None = None
+    cwc: Polytope | None = None
+    support_region: ComRegion | None = None
+    com_velocity: np.ndarray | None = None
+    capture_point: np.ndarray | None = None
+
+    @property
+    def feasible_region(self) -> ComRegion | None:
+        """Return the feasible region (the FWS's slice; None without the FWS)."""
+        return None if self.fws is None else self.fws.region
+
+    @property
+    def fwp_region(self) -> ComRegion | None:
+        """Return the FWP region (the FWP's slice)."""
+        return self.fwp.region
+
+    @property
+    def capture_point_margin(self) -> float:
+        """Return the capture point's signed distance [m] to the feasible region, or NaN."""
+        return math.nan if self.fws is None else self.fws.capture_point_margin
 
     @property
     def status(self) -> str:
@@ -181,8 +225,28 @@ class FeasibilityResult:
             'fwp': self.fwp.to_dict(halfspaces=halfspaces),
             'fws': None if self.fws is None else self.fws.to_dict(halfspaces=halfspaces),
             'measured_forces': None if self.measured is None else _measured_dict(self.measured),
+            **{name: region_dict(getattr(self, name)) for name in REGIONS},
+            'com_velocity': None if self.com_velocity is None else _floats(self.com_velocity),
+            'capture_point': None if self.capture_point is None else _floats(self.capture_point),
+            'capture_point_margin': _float(self.capture_point_margin),
             'timings_ms': dict(self.timings_ms),
         }
+
+
+def region_dict(region: ComRegion | None) -> dict | None:
+    """
+    Return a CoM region as JSON-ready builtins (None when not computed).
+
+    ``{"dimension": d, "vertices": [[x, y], ...], "halfspaces": [[a_x, a_y, b], ...],
+    "margin": m, "area": a}``: [m] and [m^2], world-aligned x/y relative to the CoM; the
+    vertices counter-clockwise, ``a . delta <= b`` with unit ``a``; ``margin`` None (JSON
+    ``null``) when the region is empty.
+    """
+    if region is None:
+        return None
+    return {'dimension': int(region.dimension), 'vertices': _rows(region.vertices),
+            'halfspaces': _rows(np.column_stack([region.A, region.b])),
+            'margin': _float(region.margin), 'area': float(region.area)}
 
 
 # -- JSON helpers ------------------------------------------------------------------------

@@ -8,10 +8,16 @@ units in the keys. Two statuses:
 
 - ``<node>: inputs``: per input topic the receive rate [Hz] over the last period, the age of
   the last message [s] (wall time), the messages received, lost (DDS ``message_lost``
-  events) and missing from the publisher's sequence numbers (:meth:`~NodeDiagnostics.
-  sequence`: silently replaced in a full keep-last queue). WARN when an input is stale
-  (older than ``stale_timeout_s``) or messages were lost or missing in the period; ERROR
-  when no joint state arrived yet.
+  events) and missing from the publishers' sequence numbers (:meth:`~NodeDiagnostics.
+  sequence`: silently replaced in a full keep-last queue), the matched publishers, and
+  what keeps a topic's messages away, named with the topic: publishers of another message
+  type (from the ROS graph), publishers whose QoS does not match the subscription's (the
+  incompatible-QoS events, with the policy), no publisher at all. WARN when an input is
+  stale (older than ``stale_timeout_s``), messages were lost or missing in the period, or a
+  topic has such a problem; ERROR when no joint state arrived yet (the message says why,
+  e.g. ``no joint_states received yet: /joint_states: 1 publisher with incompatible QoS
+  (RELIABILITY ...)``). Joints of ``joint_states`` that the model does not have are listed
+  once (``joint_states ignored joints``), not warned about per cycle.
 - ``<node>: evaluation``: reports per status in the period and in total, the last error and
   the last warning (the reasons of the reports), the reports per number of stance legs in
   the period (e.g. ``2:480, 4:520``; fewer than 3 legs give flat wrench sets), compute time
@@ -31,7 +37,7 @@ Everything here is O(1) per message (a few counters and one slot of a preallocat
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 import numpy as np
@@ -69,9 +75,18 @@ class _Ring:
 
 
 class _Input:
-    """Counters of one input topic."""
+    """Counters of one input topic, and what the graph and QoS events say about it."""
 
-    def __init__(self) -> None:
+    def __init__(self, name: str = '', msg_type: str = '') -> None:
+        self.name = name                     # the resolved topic name (remapped)
+        self.msg_type = msg_type             # the type the node subscribes with
+        self.publishers = 0                  # matched publishers (matched events)
+        self.graph_publishers: int | None = None   # publishers in the graph, any type
+        self.wrong_types: dict[str, int] = {}      # other type -> publishers of it
+        self.incompatible_qos = 0            # publishers offering incompatible QoS (total)
+        self.qos_policy = ''                 # the last incompatible policy
+        self.incompatible_type = 0           # incompatible-type events (total)
+        self.streams: list[int] = []         # last sequence number of each publisher
         self.total = 0
         self.period = 0
         self.last_wall: float | None = None
@@ -79,7 +94,6 @@ class _Input:
         self.lost_period = 0
         self.gaps = 0
         self.gaps_period = 0
-        self.last_seq: int | None = None
 
 
 class NodeDiagnostics:
@@ -91,14 +105,25 @@ class NodeDiagnostics:
     :param topics: the input topics to watch (e.g. ``('joint_states', 'contacts')``).
     :param stale_timeout_s: an input older than this (wall time) is stale [s]; 0 disables.
     :param ring_size: samples kept per period for the percentiles.
+    :param names: topic -> resolved (remapped) name, used in the messages (default the
+        topic).
+    :param types: topic -> message type the node subscribes with (``pkg/msg/Name``).
+    :ivar extra_joints: joints of ``joint_states`` the model does not have (the node sets
+        it to the pipeline's set).
     """
 
     def __init__(self, node_name: str, hardware_id: str, topics: Sequence[str], *,
-                 stale_timeout_s: float = 0.5, ring_size: int = 8192) -> None:
+                 stale_timeout_s: float = 0.5, ring_size: int = 8192,
+                 names: Mapping[str, str] | None = None,
+                 types: Mapping[str, str] | None = None) -> None:
         self.node_name = node_name
         self.hardware_id = hardware_id
         self.stale_timeout_s = stale_timeout_s
-        self.inputs = {t: _Input() for t in topics}
+        self.inputs = {t: _Input((names or {}).get(t, t), (types or {}).get(t, ''))
+                       for t in topics}
+        self.extra_joints: set[str] = set()
+        #: topic -> its own staleness timeout [s] (contacts: contacts_timeout_s; 0 = never).
+        self.topic_timeouts: dict[str, float] = {}
         self.reports_total = np.zeros(len(STATUS_NAMES), dtype=np.int64)
         self.reports_period = np.zeros(len(STATUS_NAMES), dtype=np.int64)
         self.compute_ms = _Ring(ring_size)
@@ -130,24 +155,69 @@ class NodeDiagnostics:
         The sequence numbers of one publisher (DDS writer) increase by one per message, so a
         jump of ``k + 1`` means ``k`` messages published but never received: dropped from a
         full keep-last queue (the node fell ``qos_depth`` behind) or by a best-effort link.
-        A smaller number than the last one means a new publisher (restart) and starts over.
-        Assumes one publisher per input topic (several interleaved publishers show gaps).
+
+        Several publishers on one topic (legs and arm) each number their own messages, and
+        the message info does not say which publisher sent one, so one sequence is kept per
+        matched publisher (:meth:`matched`): a number that follows one of them continues
+        it; while fewer sequences than publishers are known, any other number starts a new
+        one (no gap counted); else it continues the sequence with the largest number below
+        it (the smallest possible gap), and a number below all of them is a restarted
+        publisher (its sequence starts over). With one publisher this is the plain count,
+        and a smaller number than the last one starts over.
 
         :param seq: ``publication_sequence_number`` of the message info (None: unknown; the
             next known number then starts over, as a gap across it cannot be told from
             the unknown message).
         """
         c = self.inputs[topic]
+        streams = c.streams
         if seq is None:
-            c.last_seq = None
+            streams.clear()
             return 0
-        missing = 0
-        if c.last_seq is not None and seq > c.last_seq + 1:
-            missing = seq - c.last_seq - 1
-            c.gaps += missing
-            c.gaps_period += missing
-        c.last_seq = seq
+        for i, last in enumerate(streams):
+            if seq == last + 1:
+                streams[i] = seq
+                return 0
+        n = max(c.publishers, 1)
+        while len(streams) > n:                   # publishers left: drop the stalest
+            streams.remove(min(streams))
+        if len(streams) < n:
+            streams.append(seq)
+            return 0
+        below = [last for last in streams if last < seq]
+        if not below:                             # a publisher that restarted
+            streams[streams.index(min(streams))] = seq
+            return 0
+        last = max(below)
+        streams[streams.index(last)] = seq
+        missing = seq - last - 1
+        c.gaps += missing
+        c.gaps_period += missing
         return missing
+
+    def matched(self, topic: str, publishers: int) -> None:
+        """Record the number of publishers matched with ``topic``'s subscription."""
+        self.inputs[topic].publishers = max(int(publishers), 0)
+
+    def incompatible_qos(self, topic: str, total: int, policy: str) -> None:
+        """Record a publisher whose QoS does not match (``total`` so far, ``policy``)."""
+        c = self.inputs[topic]
+        c.incompatible_qos = int(total)
+        c.qos_policy = policy
+
+    def incompatible_type(self, topic: str, total: int) -> None:
+        """Record a publisher of another message type (the middleware's event)."""
+        self.inputs[topic].incompatible_type = int(total)
+
+    def graph(self, topic: str, types: Sequence[str]) -> None:
+        """Record the message types of every publisher of ``topic`` in the ROS graph."""
+        c = self.inputs[topic]
+        c.graph_publishers = len(types)
+        wrong: dict[str, int] = {}
+        for t in types:
+            if c.msg_type and t != c.msg_type:
+                wrong[t] = wrong.get(t, 0) + 1
+        c.wrong_types = wrong
 
     def lost(self, topic: str, count: int) -> None:
         """Count ``count`` messages reported lost by the middleware on ``topic``."""
@@ -209,7 +279,7 @@ class NodeDiagnostics:
         return msg
 
     def _inputs_status(self, wall: float, dt: float | None) -> DiagnosticStatus:
-        values, stale, lost, gaps = [], [], [], []
+        values, stale, lost, gaps, problems = [], [], [], [], {}
         for topic, c in self.inputs.items():
             rate = float('nan') if dt is None else c.period / dt
             age = float('inf') if c.last_wall is None else wall - c.last_wall
@@ -217,19 +287,35 @@ class NodeDiagnostics:
                        KeyValue(key=f'{topic} age [s]', value=f'{age:.3f}'),
                        KeyValue(key=f'{topic} received (total)', value=str(c.total)),
                        KeyValue(key=f'{topic} lost (total)', value=str(c.lost)),
-                       KeyValue(key=f'{topic} sequence gaps (total)', value=str(c.gaps))]
-            if self.stale_timeout_s > 0.0 and age > self.stale_timeout_s:
+                       KeyValue(key=f'{topic} sequence gaps (total)', value=str(c.gaps)),
+                       KeyValue(key=f'{topic} topic', value=c.name),
+                       KeyValue(key=f'{topic} publishers (matched)', value=str(c.publishers))]
+            problem = self._topic_problem(c)
+            values.append(KeyValue(key=f'{topic} problem', value=problem))
+            if problem:
+                problems[topic] = problem
+            timeout = self.topic_timeouts.get(topic, self.stale_timeout_s)
+            if timeout > 0.0 and age > timeout:
                 stale.append(topic)
             if c.lost_period:
                 lost.append(f'{topic} ({c.lost_period})')
             if c.gaps_period:
                 gaps.append(f'{topic} ({c.gaps_period})')
-        first = next(iter(self.inputs.values()), None)
+        if 'joint_states' in self.inputs:
+            extra = sorted(self.extra_joints)
+            values.append(KeyValue(key='joint_states ignored joints (not in the model)',
+                                   value=', '.join(extra)))
+        first_topic = next(iter(self.inputs), None)
+        first = self.inputs.get(first_topic)
+        found = list(problems.values())
         if first is not None and first.total == 0:
-            level, text = DiagnosticStatus.ERROR, f'no {next(iter(self.inputs))} received yet'
-        elif stale or lost or gaps:
+            level = DiagnosticStatus.ERROR
+            why = problems.pop(first_topic, '')
+            text = '; '.join([f'no {first_topic} received yet' + (f': {why}' if why else '')]
+                             + list(problems.values()))
+        elif stale or lost or gaps or found:
             level = DiagnosticStatus.WARN
-            text = '; '.join(([f'stale: {", ".join(stale)}'] if stale else [])
+            text = '; '.join(found + ([f'stale: {", ".join(stale)}'] if stale else [])
                              + ([f'lost: {", ".join(lost)}'] if lost else [])
                              + ([f'missing from sequence: {", ".join(gaps)}'] if gaps
                                 else []))
@@ -237,6 +323,35 @@ class NodeDiagnostics:
             level, text = DiagnosticStatus.OK, 'inputs fresh'
         return DiagnosticStatus(level=level, name=f'{self.node_name}: inputs', message=text,
                                 hardware_id=self.hardware_id, values=values)
+
+    @staticmethod
+    def _topic_problem(c: _Input) -> str:
+        """Return what keeps an input topic's messages away, naming the topic, or ''."""
+        texts = []
+        if c.wrong_types:
+            kinds = ', '.join(f'{n} of type {t}' for t, n in sorted(c.wrong_types.items()))
+            texts.append(f'{c.name} has publishers of another type ({kinds}); this node '
+                         f'subscribes with {c.msg_type or "another type"}')
+        elif c.incompatible_type:
+            texts.append(f'{c.name} has a publisher of another type (incompatible-type '
+                         f'events: {c.incompatible_type}); this node subscribes with '
+                         f'{c.msg_type or "another type"}')
+        if c.incompatible_qos:
+            hint = {'RELIABILITY': ': a best-effort publisher and a reliable subscription '
+                                   '(set qos_reliability:=best_effort)',
+                    'DURABILITY': ': a volatile publisher and a transient-local '
+                                  'subscription (contacts_durability)'}.get(c.qos_policy, '')
+            texts.append(f'{c.name} has {c.incompatible_qos} publisher'
+                         f'{"s" if c.incompatible_qos != 1 else ""} with incompatible QoS '
+                         f'({c.qos_policy or "unknown policy"}{hint}); their messages are '
+                         'not received')
+        if c.total == 0 and not texts:
+            if c.graph_publishers == 0 and c.publishers == 0:
+                texts.append(f'{c.name} has no publisher')
+            elif c.publishers:
+                texts.append(f'{c.name} has {c.publishers} matched publisher'
+                             f'{"s" if c.publishers != 1 else ""} but no message arrived')
+        return '; '.join(texts)
 
     def _evaluation_status(self, input_rate: float) -> DiagnosticStatus:
         c50, c99 = self.compute_ms.percentiles([50, 99])

@@ -13,9 +13,13 @@ QoS: reliable (or best effort, ``qos_reliability``), keep last ``qos_depth``.
 
 Publications: ``~/report`` (FeasibilityReport, one per joint state), ``~/awp``, ``~/fwp``
 (WrenchPolytope, each evaluated cycle), ``~/fws`` (at ``fws_rate_hz``), ``~/leg_polytopes``
-(LegPolytopes), ``~/markers`` (MarkerArray at ``marker_rate_hz``), ``/diagnostics``
+(LegPolytopes), ``~/support_region`` (PolygonStamped, each evaluated cycle),
+``~/feasible_region`` (PolygonStamped, with the FWS), ``~/markers`` (MarkerArray at
+``marker_rate_hz``), ``/diagnostics``
 (DiagnosticArray, every ``diagnostics_period_s``). Polytope and marker messages are only
-built when the topic has a subscriber.
+built when the topic has a subscriber. Service: ``~/evaluate`` (awp_ros_msgs/srv/Evaluate,
+candidate states in, reports out), answered by a worker process beside the stream
+(:mod:`awp_ros.node.evaluate_service`).
 
 Parameters: the robot config keys of ``config/<robot>.yaml`` (``robot_name``, ``urdf``,
 ``feet``, ``leg_joints.<foot>``, ``torque_limits.<joint>``, ``friction_coefficient``,
@@ -59,19 +63,21 @@ import time
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport, LegPolytopes, WrenchPolytope
 from diagnostic_msgs.msg import DiagnosticArray
-from geometry_msgs.msg import WrenchStamped
+from geometry_msgs.msg import PolygonStamped, WrenchStamped
 from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_policy_name_from_kind, QoSProfile,
+                       ReliabilityPolicy)
 from sensor_msgs.msg import Imu, JointState
 from visualization_msgs.msg import MarkerArray
 
 from awp_ros.errors import AwpError
 from awp_ros.node.diagnostics import NodeDiagnostics
+from awp_ros.node.evaluate_service import EvaluateService
 from awp_ros.node.input_drain import InputDrain
 from awp_ros.node.marker_worker import MarkerWorker
 from awp_ros.node.parameters import NodeParameters
@@ -116,10 +122,12 @@ class AwpNode(Node):
                                     'STATUS_ERROR until a corrected robot_description (or '
                                     'robot key) is set')
         name = self.pipeline.config.robot_name if self.pipeline else 'unknown'
-        topics = ['joint_states', 'contacts'] + (['imu'] if p.use_imu else []) \
-            + (['odom'] if p.use_odometry else [])
+        topics = ['joint_states'] + (['contacts'] if p.contact_source == 'topic' else []) \
+            + (['imu'] if p.use_imu else []) + (['odom'] if p.use_odometry else [])
         self.diagnostics = NodeDiagnostics(self.get_fully_qualified_name().lstrip('/'), name,
                                            topics, stale_timeout_s=p.stale_timeout_s)
+        self.diagnostics.topic_timeouts['contacts'] = p.contacts_timeout_s
+        self._extra_logged: frozenset = frozenset()
         self.diagnostics.model_error = self.model_error
         self.diagnostics.config_errors = self.parameters.config_errors
         self._wall = Clock(clock_type=ClockType.SYSTEM_TIME)
@@ -153,6 +161,9 @@ class AwpNode(Node):
                 self.pipeline.set_config(evaluator)
             self.pipeline.set_params(params)
         self.diagnostics.stale_timeout_s = params.stale_timeout_s
+        self.diagnostics.topic_timeouts['contacts'] = params.contacts_timeout_s
+        config = None if self.pipeline is None else self.pipeline.config
+        self.evaluate_service.update(config, params, self.model_error)
         self._limits_declared = False   # declared on the next joint state (not in a callback)
 
     # -- interfaces ------------------------------------------------------------------------
@@ -174,11 +185,14 @@ class AwpNode(Node):
         self.pub_wrench = {k: self.create_publisher(WrenchPolytope, f'~/{k}', qos_big)
                            for k in ('awp', 'fwp', 'fws')}
         self.pub_legs = self.create_publisher(LegPolytopes, '~/leg_polytopes', qos_big)
+        self.pub_regions = {k: self.create_publisher(PolygonStamped, f'~/{k}', qos_big)
+                            for k in ('feasible_region', 'support_region')}
         self.pub_markers = self.create_publisher(MarkerArray, '~/markers', qos_big)
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         # The single-threaded executor serves ready subscriptions in creation order: contacts
         # and imu first, so that a joint state is evaluated after the inputs sent before it.
-        subs = [('contacts', ContactState, self._on_contacts)]
+        subs = [('contacts', ContactState, self._on_contacts)] \
+            if p.contact_source == 'topic' else []
         if p.use_imu:
             subs.append(('imu', Imu, self._on_imu))
         if p.use_odometry:
@@ -189,20 +203,23 @@ class AwpNode(Node):
         # count and the load shedding; rclpy's EventsExecutor cannot pass it (its callbacks
         # take the message only), so with it both are off.
         with_info = self.parameters.value('executor') != 'events'
+        durability = self.parameters.choice('contacts_durability',
+                                            ('volatile', 'transient_local'))
         for topic, mtype, callback in subs:
             if not with_info:
                 callback = (lambda msg, f=callback: f(msg, {}))  # noqa: E731
-            events = SubscriptionEventCallbacks(
-                message_lost=lambda info, t=topic: self.diagnostics.lost(
-                    t, info.total_count_change))
-            try:
-                sub = self.create_subscription(mtype, topic, callback, qos_in,
-                                               event_callbacks=events)
-            except Exception:  # noqa: BLE001 -- middleware without message_lost events
-                sub = self.create_subscription(mtype, topic, callback, qos_in)
+            qos = qos_in
+            if topic == 'contacts' and durability == 'transient_local':
+                qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                                 reliability=reliability,
+                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
+            sub = self._input_subscription(topic, mtype, callback, qos)
             self.subscriptions_.append(sub)
-        handlers = [self._on_contacts] + ([self._on_imu] if p.use_imu else []) \
-            + ([self._on_odometry] if p.use_odometry else [])
+            c = self.diagnostics.inputs[topic]
+            c.name, c.msg_type = sub.topic_name, _type_name(mtype)
+        handlers = [h for h, on in ((self._on_contacts, p.contact_source == 'topic'),
+                                    (self._on_imu, p.use_imu),
+                                    (self._on_odometry, p.use_odometry)) if on]
         self.drain = InputDrain(list(zip(self.subscriptions_[:-1], handlers)),
                                 (self.subscriptions_[-1], self._handle_joint_state),
                                 self.context, budget_s=self.parameters.value('drain_budget_s'))
@@ -211,10 +228,48 @@ class AwpNode(Node):
         self.marker_worker = None
         if self.parameters.value('marker_worker') and p.marker_rate_hz > 0.0:
             self.marker_worker = MarkerWorker(self.pub_markers.publish, self._output_error)
+        # ~/evaluate: answered by a worker process, beside the stream (evaluate_service.py).
+        self.evaluate_service = EvaluateService(
+            self.resolve_service_name('~/evaluate'), self.get_name(), self.get_namespace(),
+            self._output_error, self.get_logger().info)
+        config = None if self.pipeline is None else self.pipeline.config
+        self.evaluate_service.update(config, p, self.model_error)
         period = self.parameters.value('diagnostics_period_s')
         self.diag_timer = self.create_timer(period if period > 0 else 1.0,
                                             self._publish_diagnostics,
                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _input_subscription(self, topic: str, mtype, callback, qos: QoSProfile):
+        """
+        Subscribe to an input with the events that feed ``/diagnostics``.
+
+        ``message_lost`` (counted), ``incompatible_qos`` (a publisher whose QoS does not
+        match: named with the policy, instead of only rclpy's log line),
+        ``incompatible_type`` and ``matched`` (the publisher count of the per-publisher
+        sequence numbers); a middleware without some of them gets the others.
+        """
+        d = self.diagnostics
+
+        def on_qos(info, t=topic) -> None:
+            policy = qos_policy_name_from_kind(info.last_policy_kind)
+            d.incompatible_qos(t, info.total_count, policy)
+            self.get_logger().warning(
+                f'{d.inputs[t].name}: a publisher offers incompatible QoS ({policy}); no '
+                'message from it is received (see /diagnostics)')
+
+        full = SubscriptionEventCallbacks(
+            message_lost=lambda info, t=topic: d.lost(t, info.total_count_change),
+            incompatible_qos=on_qos,
+            incompatible_type=lambda info, t=topic: d.incompatible_type(t, info.total_count),
+            matched=lambda info, t=topic: d.matched(t, info.current_count))
+        lean = SubscriptionEventCallbacks(incompatible_qos=on_qos)
+        for events in (full, lean):
+            try:
+                return self.create_subscription(mtype, topic, callback, qos,
+                                                event_callbacks=events)
+            except Exception:  # noqa: BLE001,S112 -- middleware without these events
+                continue
+        return self.create_subscription(mtype, topic, callback, qos)
 
     # -- callbacks -------------------------------------------------------------------------
 
@@ -273,6 +328,9 @@ class AwpNode(Node):
                     self._publish_output(pub, kind, getattr(cycle, kind))
             if self.pub_legs.get_subscription_count():
                 self._publish_output(self.pub_legs, 'leg_polytopes', cycle.leg_polytopes)
+            for name, pub in self.pub_regions.items():
+                if pub.get_subscription_count():
+                    self._publish_output(pub, name, getattr(cycle, name))
         if cycle.markers_due and self.pub_markers.get_subscription_count():
             self._publish_markers(cycle)
         self.diagnostics.evaluated(report.status, report.compute_time, self._latency(msg),
@@ -305,6 +363,7 @@ class AwpNode(Node):
         """Stop the marker worker, release the drain's wait set, destroy the node."""
         if self.marker_worker is not None:
             self.marker_worker.close()
+        self.evaluate_service.close()
         self.drain.close()
         super().destroy_node()
 
@@ -329,8 +388,41 @@ class AwpNode(Node):
             self._output_error(f'could not build {name}: {type(exc).__name__}: {exc}')
 
     def _publish_diagnostics(self) -> None:
+        self._check_inputs()
         self.pub_diag.publish(self.diagnostics.build(self.get_clock().now().to_msg(),
                                                      time.monotonic()))
+
+    def _check_inputs(self) -> None:
+        """
+        Refresh what ``/diagnostics`` says about the inputs (once per period, not per message).
+
+        The types of every publisher of each input topic (from the ROS graph), the matched
+        publishers, and the joints of ``joint_states`` the model does not have (logged once
+        when new ones appear).
+        """
+        d = self.diagnostics
+        for sub in self.subscriptions_:
+            topic = next((t for t, c in d.inputs.items() if c.name == sub.topic_name), None)
+            if topic is None:
+                continue
+            try:
+                infos = self.get_publishers_info_by_topic(sub.topic_name)
+                d.graph(topic, [i.topic_type for i in infos])
+                d.matched(topic, sub.get_publisher_count())
+            except Exception:  # noqa: BLE001 -- a graph query must not stop the diagnostics
+                pass
+        extra = self.pipeline.extra_joints if self.pipeline is not None else set()
+        d.extra_joints = extra
+        if extra and not self._extra_logged.issuperset(extra):
+            self._extra_logged = frozenset(extra)
+            self.get_logger().info(
+                f'joint_states names joints the model does not have, ignored: '
+                f'{sorted(extra)} (list them in ignored_joints to silence this)')
+
+
+def _type_name(mtype) -> str:
+    """Return a message class's type name, ``pkg/msg/Name``."""
+    return f'{mtype.__module__.split(".")[0]}/msg/{mtype.__name__}'
 
 
 def _queue_delay(info: dict) -> float:

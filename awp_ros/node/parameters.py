@@ -26,57 +26,30 @@ from rclpy.parameter import Parameter
 
 from awp_ros.errors import AwpError, ConfigError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
-from awp_ros.robot.config import load_config, RobotConfig
+from awp_ros.robot.config import check_keys, DEFAULT_ROBOT, load_config, ROBOT_KEYS, RobotConfig
 from awp_ros.ros.pipeline import check_marker_frame
-from awp_ros.ros.pipeline_params import PARAMETER_DOCS, PipelineParams
+from awp_ros.ros.pipeline_params import NODE_KEYS, PARAMETER_DOCS, PIPELINE_KEYS, PipelineParams
 
 __all__ = ['limit_value', 'NODE_PARAMETER_DOCS', 'NodeParameters',
            'ROBOT_PARAMETER_DOCS', 'ROBOT_PREFIXES']
 
 _T = Parameter.Type
+#: Schema kind -> rclpy parameter type (None: a double or a pair, dynamically typed).
+_TYPES = {'string': _T.STRING, 'double': _T.DOUBLE, 'integer': _T.INTEGER, 'bool': _T.BOOL,
+          'string_array': _T.STRING_ARRAY, 'double_array': _T.DOUBLE_ARRAY, 'limit': None}
 
-#: Robot config keys (parameters shared with the core's YAML), their type and meaning.
-ROBOT_PARAMETER_DOCS = {
-    'robot_name': (_T.STRING, 'robot name (diagnostics hardware_id)'),
-    'urdf': (_T.STRING, 'URDF: example-robot-data://<path>, a file path, or the XML'),
-    'feet': (_T.STRING_ARRAY, 'contact frames (feet), the order of every per-leg output'),
-    'friction_coefficient': (_T.DOUBLE, 'default friction coefficient mu > 0 [-]'),
-    'contact_normal': (_T.DOUBLE_ARRAY, 'default contact normal, world axes (normalised)'),
-    'pyramid_sides': (_T.INTEGER, 'sides N >= 3 of the friction pyramids'),
-}
+#: Robot config keys (parameters shared with the core's YAML), their type and meaning; the
+#: defaults are those of :data:`awp_ros.robot.config.ROBOT_KEYS`.
+ROBOT_PARAMETER_DOCS = {name: (_TYPES[k.kind], k.doc) for name, k in ROBOT_KEYS.items()
+                        if not k.item}
 #: Prefixed robot keys: one parameter per foot or joint.
-ROBOT_PREFIXES = {
-    'leg_joints': (_T.STRING_ARRAY, 'joints driving foot {} (hip to foot)'),
-    'torque_limits': (None, 'torque limit of joint {}: L (range [-L, L]) or [min, max] '
-                            '[N.m]'),
-    'standing_posture': (_T.DOUBLE, 'standing posture of joint {} [rad]'),
-}
+ROBOT_PREFIXES = {name: (_TYPES[k.kind], f'{k.item} {{}}: {k.doc}')
+                  for name, k in ROBOT_KEYS.items() if k.item}
 
-#: Node-only parameters: (type, default, description, read_only).
-NODE_PARAMETER_DOCS = {
-    'robot': (_T.STRING, '', "robot config name or YAML path to start from ('' = the "
-              'robot keys given as parameters, else hyq)', True),
-    'robot_description': (_T.STRING, '', 'URDF XML (as robot_state_publisher takes it); '
-                          'replaces urdf when non-empty', False),
-    'qos_depth': (_T.INTEGER, 10000, 'keep-last depth of the input subscriptions and the '
-                  'report publisher (10000 = 10 s of 1 kHz joint states of backlog)', True),
-    'qos_reliability': (_T.STRING, 'reliable', "input QoS reliability: 'reliable' or "
-                        "'best_effort' (matches best-effort publishers)", True),
-    'executor': (_T.STRING, 'single_threaded', "rclpy executor: 'single_threaded' or "
-                 "'events' (rclpy.experimental.EventsExecutor)", True),
-    'diagnostics_period_s': (_T.DOUBLE, 1.0, 'period of /diagnostics [s]', True),
-    'drain_budget_s': (_T.DOUBLE, 0.02, 'after a joint state, the node takes the next ones '
-                       'straight from the input queues (and waits for them) for up to this '
-                       'long before returning to the rclpy executor (timers, parameter '
-                       'services): ~0.2 ms less per message [s]; 0 = only those queued', True),
-    'marker_worker': (_T.BOOL, True, 'build the markers in a worker process (off the '
-                      'joint-state loop; ~3 ms each); a marker due while two wait for the '
-                      'worker is skipped and counted in /diagnostics; false = in the node',
-                      True),
-    'blas_threads': (_T.INTEGER, 1, 'threads of the BLAS under numpy/scipy in this process '
-                     '(threadpoolctl); 1 avoids the stalls of busy-waiting BLAS threads on '
-                     'cores shared with DDS and other processes; 0 = leave as is', True),
-}
+#: Node-only parameters: (type, default, description, read_only), from
+#: :data:`awp_ros.ros.pipeline_params.NODE_KEYS`.
+NODE_PARAMETER_DOCS = {name: (_TYPES[k.kind], k.default, k.doc, k.read_only)
+                       for name, k in NODE_KEYS.items()}
 _FIELDS = {f.name: f for f in fields(PipelineParams)}
 
 
@@ -106,10 +79,20 @@ class NodeParameters:
         self.base_error = ''
         for name, (ptype, default, text, ro) in NODE_PARAMETER_DOCS.items():
             self._declare(name, default, text, read_only=ro)
+        overrides = self._overrides()
         for name, f in _FIELDS.items():
-            self._declare(name, f.default, PARAMETER_DOCS[name],
-                          read_only=name in ('use_imu', 'use_odometry'))
+            rejected = ''
+            if name in overrides:       # a value of the right type may still be out of range
+                try:
+                    PipelineParams.from_dict({name: overrides[name].value})
+                except ConfigError as exc:
+                    rejected = str(exc)
+            self._declare(name, f.default, PARAMETER_DOCS.get(name, ''),
+                          read_only=PIPELINE_KEYS[name].read_only,
+                          dynamic=isinstance(f.default, tuple), rejected=rejected)
         self._declare_robot_parameters()
+        self._check_overrides()
+        self._check_pipeline_values()
         node.add_on_set_parameters_callback(self._validate)
         node.add_post_set_parameters_callback(self._apply)
 
@@ -131,10 +114,16 @@ class NodeParameters:
     # -- declaration -----------------------------------------------------------------------
 
     def _declare(self, name: str, default, text: str, *, read_only: bool = False,
-                 dynamic: bool = False):
+                 dynamic: bool = False, rejected: str = ''):
         node = self._node
         desc = ParameterDescriptor(name=name, description=text, read_only=read_only,
                                    dynamic_typing=dynamic)
+        if rejected:                    # the override is invalid: the default, reported
+            reason = (f'parameter {name} = {self._overrides()[name].value!r} rejected '
+                      f'({rejected}); using the default {default!r}')
+            node.get_logger().error(reason)
+            self.config_errors.append(reason)
+            return node.declare_parameter(name, default, desc, ignore_override=True)
         if name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz', 'diagnostics_period_s',
                     'max_queue_delay_s', 'drain_budget_s'):
             desc.floating_point_range = [FloatingPointRange(from_value=0.0, to_value=1e6)]
@@ -164,21 +153,33 @@ class NodeParameters:
         return dict(getattr(self._node, '_parameter_overrides', {}))
 
     def _declare_robot_parameters(self) -> None:
-        """Declare the robot keys; defaults from the base config (see ``robot``)."""
+        """
+        Declare the robot keys, with the defaults of the base config (``robot``) or the schema.
+
+        Without ``robot``, the robot keys given as parameters (``urdf``, ``feet``: the
+        required ones) make the config, every other key taking its schema default; with
+        neither, the base config is ``hyq``. A required key nobody gave is declared unset
+        (the config then names it in the model error).
+        """
         overrides = self._overrides()
         robot = self.value('robot')
         try:
-            if robot or not any(k in overrides for k in ('robot_name', 'urdf', 'feet')):
-                self.base = load_config(robot or 'hyq')
+            if robot or not any(k in overrides for k in ('urdf', 'feet')):
+                self.base = load_config(robot or DEFAULT_ROBOT)
         except AwpError as exc:
             self.base_error = f'no robot model: {exc}'
         base = self._base_dict()
         for name, (ptype, text) in ROBOT_PARAMETER_DOCS.items():
-            if name in base or name in overrides:   # any type: RobotConfig validates
-                default = base[name] if name in base else overrides[name].value
+            default = ROBOT_KEYS[name].default
+            if name in base or name in overrides or default is not None:
+                if name in base:        # any type: RobotConfig validates
+                    default = base[name]
+                elif name in overrides:
+                    default = overrides[name].value
                 self._declare(name, default, text, dynamic=True)
             else:
-                self._node.declare_parameter(name, ptype, ParameterDescriptor(description=text))
+                self._node.declare_parameter(name, ptype, ParameterDescriptor(
+                    description=text, dynamic_typing=True))
         prefixed = {k for k in overrides if k.split('.', 1)[0] in ROBOT_PREFIXES and '.' in k}
         prefixed |= {k for k in base if '.' in k}
         for key in sorted(prefixed):
@@ -186,6 +187,50 @@ class NodeParameters:
             ptype, text = ROBOT_PREFIXES[prefix]
             self._declare(key, base.get(key, overrides.get(key).value if key in overrides
                                         else None), text.format(item), dynamic=True)
+
+    def _check_overrides(self) -> None:
+        """
+        Refuse parameters (params file, ``-p``) that no part of the node knows.
+
+        A typo (``friction_coeficient``) would otherwise leave the default in use silently:
+        it becomes the model error (every report ``STATUS_ERROR`` naming the key and its
+        close matches, ``/diagnostics`` ERROR) until a robot key is set at runtime.
+        """
+        declared = {name.split('.', 1)[0] for name in self._node._parameters}
+        try:
+            check_keys({k: p.value for k, p in self._overrides().items()}, extra=declared)
+        except ConfigError as exc:
+            reason = f'bad parameters: {exc}'       # logged by the node as its model error
+            self.base_error = '; '.join(e for e in (self.base_error, reason) if e)
+
+    def _check_pipeline_values(self) -> None:
+        """
+        Replace pipeline parameters that PipelineParams rejects together by their defaults.
+
+        Values valid one by one but not together (``contact_force_off_n`` above
+        ``contact_force_on_n``; one by one they are checked when declared) are logged,
+        listed in :attr:`config_errors` and replaced by their defaults.
+        """
+        for _ in range(len(_FIELDS)):
+            try:
+                self.pipeline_params()
+                return
+            except ConfigError as exc:
+                text = str(exc)
+                bad = [n for n in _FIELDS if n in text.split(' ', 1)[0] or f' {n} ' in text
+                       or text.startswith(n)] or list(_FIELDS)
+                for name in bad:
+                    default = _FIELDS[name].default
+                    value = self.value(name)
+                    reason = (f'parameter {name} = {value!r} rejected ({text}); using the '
+                              f'default {default!r}')
+                    self._node.get_logger().error(reason)
+                    self.config_errors.append(reason)
+                    self._declaring = True       # the default: nothing to validate or apply
+                    try:
+                        self._node.set_parameters([Parameter(name, value=default)])
+                    finally:
+                        self._declaring = False
 
     def _base_dict(self) -> dict:
         """Return the base config as flat parameter values (dotted keys)."""
@@ -234,7 +279,7 @@ class NodeParameters:
         node = self._node
         names = [n for n in node.list_parameters([], 0).names
                  if n in ROBOT_PARAMETER_DOCS or n.split('.', 1)[0] in ROBOT_PREFIXES]
-        values = {p.name: p.value for p in node.get_parameters(names)}
+        values = {n: node.get_parameter_or(n, None).value for n in names}   # unset: None
         values.update(changes or {})
         values = {k: (list(v) if isinstance(v, (array, tuple)) else v)
                   for k, v in values.items() if v is not None}

@@ -21,30 +21,153 @@ with ``--params-file config/hyq.yaml`` and the library reads the same file::
 folder), a ``file://`` URI, a path (relative paths are relative to the YAML file), or
 the URDF XML itself (as the ``robot_description`` parameter carries it). A torque
 limit is a scalar ``L`` (the range ``[-L, L]``) or a pair ``[tau_min, tau_max]``.
-Unknown keys are ignored: the node keeps its own parameters in the same file.
+
+Only ``urdf`` and ``feet`` are required; every other key has the default of
+:data:`ROBOT_KEYS`. The file also holds the node's parameters; the schema of every key of
+such a file (:func:`parameter_schema`: these robot keys, the pipeline's and the node's) is
+shared by every reader, so a key none of them knows (a typo: ``friction_coeficient``) is an
+error naming it and its close matches (:func:`check_keys`), in the core loader, the replay
+and the node alike.
 """
 
 from __future__ import annotations
 
 import array
-from collections.abc import Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
+import difflib
 import math
 import numbers
 import os
 from pathlib import Path
+import re
 import sys
+import xml.etree.ElementTree as ElementTree
 
 import yaml
 
 from awp_ros.errors import ConfigError
 
-__all__ = ['DEFAULT_ROBOT', 'RobotConfig', 'available_configs', 'config_dirs', 'find_config_file',
-           'find_parameters_file', 'load_config', 'load_parameters', 'read_parameters',
-           'ros_parameters']
+__all__ = ['DEFAULT_ROBOT', 'ConfigKey', 'ROBOT_KEYS', 'ROS_KEYS', 'RobotConfig',
+           'available_configs', 'check_keys', 'close_matches', 'config_dirs',
+           'find_config_file', 'find_parameters_file', 'load_config', 'load_parameters',
+           'parameter_schema', 'read_parameters', 'ros_parameters', 'srdf_standing_posture',
+           'urdf_robot_name']
 
 DEFAULT_ROBOT = 'hyq'
 _ENV_CONFIG_DIR = 'AWP_ROS_CONFIG_DIR'
+
+
+@dataclass(frozen=True)
+class ConfigKey:
+    """
+    One key of the parameters schema: its kind, default and meaning.
+
+    ``kind`` is ``'string'``, ``'double'``, ``'integer'``, ``'bool'``, ``'string_array'``,
+    ``'double_array'`` or ``'limit'`` (a double ``L`` or a pair ``[min, max]``). A key with
+    an ``item`` is prefixed: one parameter ``<name>.<item>`` per foot or joint (nested in
+    YAML). ``default`` is None for a required key and for one whose default is derived
+    (``doc`` says from what). ``group``: ``'robot'`` (the core's keys), ``'pipeline'`` or
+    ``'node'`` (``awp_node`` and the replay only).
+    """
+
+    kind: str
+    default: object
+    doc: str
+    required: bool = False
+    item: str = ''
+    group: str = 'robot'
+    read_only: bool = False
+
+
+#: The robot keys: what the core reads (RobotConfig), with defaults; ``urdf`` and ``feet``
+#: are the only required keys.
+ROBOT_KEYS: dict[str, ConfigKey] = {
+    'robot_name': ConfigKey(
+        'string', '', "robot name (reports, diagnostics hardware_id); '' = the URDF's file "
+        'name without extension (a1.urdf: a1), or the name attribute of URDF XML'),
+    'urdf': ConfigKey(
+        'string', None, 'URDF: example-robot-data://<path under robots/>, file://<path>, a '
+        'path (relative to the YAML file) or the XML itself', required=True),
+    'feet': ConfigKey(
+        'string_array', None, 'contact frames (URDF links or frames), in the order of every '
+        'per-leg output', required=True),
+    'leg_joints': ConfigKey(
+        'string_array', None, 'joints driving the foot, base to foot; default: the 1-DoF '
+        'joints on the kinematic chain from the base to the foot', item='foot'),
+    'torque_limits': ConfigKey(
+        'limit', None, 'torque limit of a leg joint: L (the range [-L, L]) or [min, max] '
+        '[N.m] ([N] prismatic); default: the URDF effort limit; a joint that drives no leg is '
+        'an error', item='joint'),
+    'friction_coefficient': ConfigKey(
+        'double', 0.7, 'default friction coefficient mu > 0 of every foot [-]'),
+    'contact_normal': ConfigKey(
+        'double_array', [0.0, 0.0, 1.0], 'default contact normal, world axes (normalised on '
+        'load)'),
+    'pyramid_sides': ConfigKey('integer', 4, 'sides N >= 3 of the friction pyramids'),
+    'standing_posture': ConfigKey(
+        'double', None, 'standing posture of a joint [rad]: all joints of the model or none; '
+        "used by awp_eval's \"posture\": \"standing\" and the gait generator; default: none "
+        "(awp_demo then takes the 'standing' state of the SRDF beside the URDF)",
+        item='joint'),
+}
+
+#: Parameters every rclpy node has (declared by rclpy; accepted in a parameters file).
+ROS_KEYS = ('use_sim_time', 'start_type_description_service', 'qos_overrides')
+
+
+def parameter_schema() -> dict[str, ConfigKey]:
+    """
+    Return every key of a parameters file: the robot keys, the pipeline's and the node's.
+
+    The pipeline's and the node's keys come from :mod:`awp_ros.ros.pipeline_params` (a
+    ROS-free module, imported here on first use), so that the core loader tells a node key
+    in a shared file from a typo.
+    """
+    from awp_ros.ros.pipeline_params import NODE_KEYS, PIPELINE_KEYS
+    return {**ROBOT_KEYS, **PIPELINE_KEYS, **NODE_KEYS}
+
+
+def close_matches(name: str, names: Collection[str]) -> str:
+    """Return `` (did you mean 'a' or 'b'?)`` for the names close to ``name``, or ''."""
+    found = difflib.get_close_matches(name, list(names), n=3, cutoff=0.6)
+    if not found:
+        return ''
+    return f" (did you mean {' or '.join(repr(m) for m in found)}?)"
+
+
+def check_keys(params: Mapping, *, where: str = '', extra: Collection[str] = ()) -> None:
+    """
+    Check that every key of a parameters mapping is in :func:`parameter_schema`.
+
+    :param params: a parameters file's mapping, its ``ros__parameters`` or flat parameters
+        (dotted keys: ``torque_limits.lf_kfe_joint``).
+    :param where: what the keys come from (a file name), for the message.
+    :param extra: more accepted top-level keys.
+    :raises ConfigError: unknown keys (each named with its close matches), a prefixed key
+        given as a single value (``leg_joints: [a, b]``) or a plain key given per item.
+    """
+    schema = parameter_schema()
+    known = set(schema) | set(ROS_KEYS) | set(extra)
+    nested = _nest(ros_parameters(params))
+    at = f' in {where}' if where else ''
+    unknown = [k for k in nested if k not in known]
+    if unknown:
+        listed = ', '.join(f'{k!r}{close_matches(k, known)}' for k in unknown)
+        noun = 'parameter' if len(unknown) == 1 else 'parameters'
+        raise ConfigError(f'unknown {noun}{at}: {listed}; the known keys are listed in the '
+                          "README's parameter tables")
+    for key, value in nested.items():
+        spec = schema.get(key)
+        if spec is None:
+            continue
+        if spec.item and not isinstance(value, Mapping):
+            raise ConfigError(f'{key}{at} must give one value per {spec.item} ({key}.<'
+                              f'{spec.item}>, nested in YAML), got {value!r}')
+        if not spec.item and isinstance(value, Mapping):
+            sub = next(iter(value), '')
+            raise ConfigError(f'unknown parameter{at}: {key}.{sub!s} ({key} is a single '
+                              'value, not one per foot or joint)')
 
 
 @dataclass(frozen=True)
@@ -79,7 +202,8 @@ class RobotConfig:
             raise ConfigError(f'feet contains duplicates: {list(self.feet)}')
         for foot in self.leg_joints:
             if foot not in self.feet:
-                msg = f'leg_joints names unknown foot {foot!r}; feet are {list(self.feet)}'
+                msg = (f'leg_joints names unknown foot {foot!r}{close_matches(foot, self.feet)};'
+                       f' feet are {list(self.feet)}')
                 raise ConfigError(msg)
         mu = self.friction_coefficient
         if not (math.isfinite(mu) and mu > 0.0):
@@ -105,25 +229,33 @@ class RobotConfig:
         return (x, y, z)
 
     @classmethod
-    def from_dict(cls, params: Mapping, base_dir: str | os.PathLike | None = None
-                  ) -> RobotConfig:
+    def from_dict(cls, params: Mapping, base_dir: str | os.PathLike | None = None, *,
+                  where: str = '') -> RobotConfig:
         """
         Build a config from parameters, nested or with dotted keys.
 
         Accepts the whole parameters file (``{'/**': {'ros__parameters': {...}}}``), the
         ``ros__parameters`` mapping itself, or the flat mapping rclpy exposes
-        (``{'leg_joints.lf_foot': [...], 'torque_limits.lf_haa_joint': 150.0}``).
+        (``{'leg_joints.lf_foot': [...], 'torque_limits.lf_haa_joint': 150.0}``). Keys of
+        the pipeline and the node are accepted (and left to them); keys of
+        :data:`ROBOT_KEYS` that are absent take their defaults.
 
         :param params: the parameters.
         :param base_dir: folder that relative URDF paths are relative to.
+        :param where: what the parameters come from (a file), for the messages.
         :return: the validated config.
+        :raises ConfigError: a required key missing, a key no reader knows (with its close
+            matches), a bad value (named).
         """
         if not isinstance(params, Mapping):
             raise ConfigError(f'robot config must be a mapping, got {type(params).__name__}')
+        check_keys(params, where=where)
         p = _nest(ros_parameters(params))
-        missing = [k for k in ('robot_name', 'urdf', 'feet') if k not in p]
+        missing = [k for k, spec in ROBOT_KEYS.items() if spec.required and k not in p]
         if missing:
-            raise ConfigError(f'robot config lacks required keys {missing}')
+            at = f' {where}' if where else ''
+            raise ConfigError(f'robot config{at} lacks required keys {missing} (required: '
+                              f'{", ".join(k for k, s in ROBOT_KEYS.items() if s.required)})')
         feet = _str_tuple(p['feet'], 'feet')
         leg_joints = {str(foot): _str_tuple(joints, f'leg_joints.{foot}')
                       for foot, joints in _mapping(p.get('leg_joints'), 'leg_joints').items()}
@@ -131,19 +263,26 @@ class RobotConfig:
                   for j, v in _mapping(p.get('torque_limits'), 'torque_limits').items()}
         posture = {str(j): _float(v, f'standing_posture.{j}')
                    for j, v in _mapping(p.get('standing_posture'), 'standing_posture').items()}
-        normal = p.get('contact_normal', (0.0, 0.0, 1.0))
+        normal = p.get('contact_normal', ROBOT_KEYS['contact_normal'].default)
         if not _is_array(normal) or len(normal) != 3:
             raise ConfigError(f'contact_normal must be a list of 3 numbers, got {normal!r}')
-        sides = p.get('pyramid_sides', 4)
+        sides = p.get('pyramid_sides', ROBOT_KEYS['pyramid_sides'].default)
         if isinstance(sides, bool) or not isinstance(sides, numbers.Integral):
             raise ConfigError(f'pyramid_sides must be an integer, got {sides!r}')
+        urdf = p['urdf']
+        if not isinstance(urdf, str) or not urdf.strip():
+            raise ConfigError(f'urdf must be a non-empty string, got {urdf!r}')
+        name = p.get('robot_name') or ''
+        if not isinstance(name, str):
+            raise ConfigError(f'robot_name must be a string, got {name!r}')
         return cls(
-            robot_name=str(p['robot_name']),
-            urdf=str(p['urdf']),
+            robot_name=name or urdf_robot_name(urdf),
+            urdf=urdf,
             feet=feet,
             leg_joints=leg_joints,
             torque_limits=limits,
-            friction_coefficient=_float(p.get('friction_coefficient', 0.7),
+            friction_coefficient=_float(p.get('friction_coefficient',
+                                              ROBOT_KEYS['friction_coefficient'].default),
                                         'friction_coefficient'),
             contact_normal=tuple(_float(x, 'contact_normal') for x in normal),
             pyramid_sides=int(sides),
@@ -151,11 +290,31 @@ class RobotConfig:
             base_dir=None if base_dir is None else str(base_dir),
         )
 
+    def check_joints(self, joint_names: Collection[str], leg_joints: Collection[str]) -> None:
+        """
+        Check the per-joint keys against a model's joints (the model calls it once built).
+
+        :param joint_names: every joint of the model.
+        :param leg_joints: the joints that drive a foot.
+        :raises ConfigError: ``torque_limits.<joint>`` for a joint the model does not have
+            (with its close matches) or that drives no leg.
+        """
+        legs = list(leg_joints)
+        for joint in self.torque_limits:
+            if joint not in joint_names:
+                raise ConfigError(f'torque_limits.{joint}: the URDF has no joint {joint!r}'
+                                  f'{close_matches(joint, joint_names)}; the leg joints are '
+                                  f'{legs}')
+            if joint not in legs:
+                raise ConfigError(f'torque_limits.{joint}: joint {joint!r} drives no foot '
+                                  f'(feet {list(self.feet)}), so its limit would not be used; '
+                                  f'the leg joints are {legs}')
+
     @classmethod
     def from_yaml(cls, path: str | os.PathLike) -> RobotConfig:
         """Read a config from a YAML (ROS 2 parameters) file."""
         values, base_dir = read_parameters(path)
-        return cls.from_dict(values, base_dir=base_dir)
+        return cls.from_dict(values, base_dir=base_dir, where=str(path))
 
 
 def read_parameters(path: str | os.PathLike) -> tuple[dict, Path]:
@@ -185,14 +344,16 @@ def find_parameters_file(name_or_path: str | os.PathLike = DEFAULT_ROBOT) -> Pat
     :raises ConfigError: no such file or name (the message lists the known names).
     """
     text = os.fspath(name_or_path)
-    path = Path(text)
-    if path.suffix in ('.yaml', '.yml') or os.sep in text or path.is_file():
-        if not path.is_file():
-            raise ConfigError(f'robot config file {text!r} does not exist')
+    path = Path(os.path.expanduser(text))
+    if path.is_file():
         return path
+    if path.suffix in ('.yaml', '.yml') or os.sep in text or (os.altsep or os.sep) in text:
+        raise ConfigError(f'robot config file {text!r} does not exist')
     found = find_config_file(f'{text}.yaml')
     if found is None:
-        raise ConfigError(f'unknown robot {text!r}; known robots are {available_configs()}')
+        known = available_configs()
+        raise ConfigError(f'unknown robot {text!r}{close_matches(text, known)}: neither a '
+                          f'file nor a config name; known robots are {known}')
     return found
 
 
@@ -252,13 +413,82 @@ def available_configs() -> list[str]:
     return sorted(names)
 
 
-def load_config(name_or_path: str | os.PathLike = DEFAULT_ROBOT) -> RobotConfig:
+def load_config(name_or_path: str | os.PathLike = DEFAULT_ROBOT,
+                overrides: Mapping | None = None) -> RobotConfig:
     """
     Load a robot config by name (``'hyq'``) or by path to a YAML file.
 
-    :raises ConfigError: no such file or name (the message lists the known names).
+    :param overrides: parameters whose robot keys replace the file's (per foot or joint
+        for the prefixed keys); their other keys are checked against the schema, not used.
+    :raises ConfigError: no such file or name (the message lists the known names), or a bad
+        config (see :meth:`RobotConfig.from_dict`).
     """
-    return RobotConfig.from_yaml(find_parameters_file(name_or_path))
+    path = find_parameters_file(name_or_path)
+    if not overrides:
+        return RobotConfig.from_yaml(path)
+    check_keys(overrides)
+    values, base_dir = read_parameters(path)
+    merged = _nest(values)
+    for key, value in _nest(ros_parameters(overrides)).items():
+        if key in ROBOT_KEYS:
+            if isinstance(value, Mapping) and isinstance(merged.get(key), Mapping):
+                merged[key] = {**merged[key], **value}
+            else:
+                merged[key] = value
+    return RobotConfig.from_dict(merged, base_dir=base_dir, where=str(path))
+
+
+def urdf_robot_name(urdf: str) -> str:
+    """
+    Return the default robot name of a config's ``urdf``: its file name without extension.
+
+    ``example-robot-data://a1_description/urdf/a1.urdf``: ``a1``; URDF XML: the ``name``
+    attribute of its ``<robot>`` element (``robot`` when it has none).
+    """
+    text = urdf.strip()
+    if text.startswith('<'):
+        found = re.search(r"""<robot\b[^>]*\bname\s*=\s*["']([^"']+)["']""", text)
+        return found.group(1) if found else 'robot'
+    return Path(text.split('://', 1)[-1]).stem or 'robot'
+
+
+def srdf_standing_posture(urdf_path: str | os.PathLike, joint_names: Collection[str],
+                          state: str = 'standing') -> tuple[dict[str, float], Path] | None:
+    """
+    Return the ``state`` group state of the SRDF beside a URDF file, and that SRDF's path.
+
+    Looked up as example-robot-data lays robots out: ``*.srdf`` in the URDF's folder, its
+    sibling ``srdf/`` folder, then the parent's ``srdf/``; the first SRDF with a
+    ``<group_state name="standing">`` that gives a value to every joint of
+    ``joint_names`` wins (other joints, e.g. ``root_joint``, are dropped).
+
+    :return: ``({joint: position [rad]}, srdf path)``, or None when no SRDF has it.
+    """
+    folder = Path(urdf_path).resolve().parent
+    candidates = []
+    for where in (folder, folder.parent / 'srdf', folder / 'srdf'):
+        if where.is_dir():
+            candidates += sorted(where.glob('*.srdf'))
+    wanted = set(joint_names)
+    for srdf in candidates:
+        try:
+            root = ElementTree.parse(srdf).getroot()
+        except (ElementTree.ParseError, OSError):
+            continue
+        for group in root.iter('group_state'):
+            if group.get('name') != state:
+                continue
+            values = {}
+            for joint in group.iter('joint'):
+                name, value = joint.get('name'), (joint.get('value') or '').split()
+                if name in wanted and len(value) == 1:
+                    try:
+                        values[name] = float(value[0])
+                    except ValueError:
+                        break
+            if set(values) == wanted:
+                return values, srdf
+    return None
 
 
 # -- helpers -------------------------------------------------------------------------------

@@ -176,6 +176,7 @@ class RobotModel:
                           'legs must not share joints'
                     raise ConfigError(msg)
                 owners[name] = foot
+        config.check_joints(self.joint_names, owners)   # limits of unknown joints: errors
         lower = model.lowerPositionLimit[7:]
         upper = model.upperPositionLimit[7:]
         self.position_limits = (lower.copy(), upper.copy())

@@ -10,6 +10,9 @@ Conversions between ROS messages and the core's objects (the node's and replay's
   forces [N] are in the CoM-centred frame with world-aligned axes (REP 103) whose name the caller
   passes in the header (parameter ``wrench_frame_id``); foot positions [m] relative to the CoM,
   same axes.
+- :class:`~awp_ros.wrench.com_region.ComRegion` -> ``geometry_msgs/PolygonStamped``
+  (:func:`region_polygon_msg`): the CoM region's vertices [m], world-aligned x/y relative to
+  the CoM, ``z = 0`` (the CoM height), in the wrench frame.
 - ``sensor_msgs/JointState`` + ``awp_ros_msgs/ContactState`` (+ ``sensor_msgs/Imu``) ->
   :class:`~awp_ros.robot.state.RobotState`. Message-level checks (array lengths, duplicate names,
   contact names that are not feet) raise :class:`~awp_ros.errors.InputError`; joints the
@@ -29,7 +32,7 @@ from awp_ros_msgs.msg import ContactState, FeasibilityReport, LegPolytope, LegPo
 from awp_ros_msgs.msg import Polytope as PolytopeMsg
 from awp_ros_msgs.msg import WrenchPolytope
 from builtin_interfaces.msg import Time
-from geometry_msgs.msg import Point
+from geometry_msgs.msg import Point, Point32, PolygonStamped
 import numpy as np
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
@@ -38,6 +41,7 @@ from awp_ros.errors import InputError
 from awp_ros.evaluation.result import AXES, FeasibilityResult, WrenchSetResult
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.robot.state import RobotState
+from awp_ros.wrench.com_region import ComRegion
 
 __all__ = [
     'KINDS',
@@ -46,6 +50,7 @@ __all__ = [
     'leg_polytopes_msg',
     'polytope_from_msg',
     'polytope_to_msg',
+    'region_polygon_msg',
     'report_msg',
     'robot_state_from_msgs',
     'stamp_to_ns',
@@ -270,20 +275,44 @@ def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float
     if fws is not None:
         msg.fws_stamp = header.stamp if fws_stamp is None else fws_stamp
     msg.feasible = bool(msg.fwp_feasible and msg.fws_feasible)
-    _set_regions(msg, result)
+    _set_regions(msg, result, fws)
     _set_measured_forces(msg, result.measured)
     msg.compute_time = float(compute_time)
     return msg
 
 
-def _set_regions(msg: FeasibilityReport, result: FeasibilityResult | None) -> None:
-    """Copy the CoM regions' margins [m] (NaN when empty or not computed)."""
-    for name in ('feasible_region', 'support_region', 'fwp_region'):
-        region = None if result is None else getattr(result, name, None)
-        margin = math.nan if region is None else region.margin
-        setattr(msg, f'{name}_margin', float(margin))
-    cp = None if result is None else getattr(result, 'capture_point_margin', None)
-    msg.capture_point_margin = math.nan if cp is None else float(cp)
+def _set_regions(msg: FeasibilityReport, result: FeasibilityResult | None,
+                 fws: WrenchSetResult | None = None) -> None:
+    """
+    Copy the CoM regions' margins [m] (NaN when empty or not computed).
+
+    The feasible region and the capture point's margin come from ``fws`` (the latest FWS,
+    whose ``fws_stamp`` they share), the support and FWP regions from ``result``.
+    """
+    regions = {'feasible_region': None if fws is None else fws.region,
+               'support_region': None if result is None else result.support_region,
+               'fwp_region': None if result is None else result.fwp.region}
+    for name, region in regions.items():
+        setattr(msg, f'{name}_margin', math.nan if region is None else float(region.margin))
+    msg.capture_point_margin = math.nan if fws is None else float(fws.capture_point_margin)
+
+
+def region_polygon_msg(header: Header, region: ComRegion | None) -> PolygonStamped:
+    """
+    Return a CoM region as a ``geometry_msgs/PolygonStamped`` (RViz and Foxglove draw it).
+
+    :param header: stamp of the joint state the region was computed for; frame_id the
+        wrench frame (origin the CoM, world-aligned axes).
+    :param region: the region; its vertices [m] relative to the CoM become the points with
+        ``z = 0`` (the CoM height): a polygon's counter-clockwise vertices, a segment's 2
+        end points (two stance legs), a point's 1 point (one leg); an empty region (or
+        None: not computed) is a polygon without points.
+    """
+    msg = PolygonStamped()
+    msg.header = header
+    V = np.zeros((0, 2)) if region is None else np.asarray(region.vertices, dtype=float)
+    msg.polygon.points = [Point32(x=x, y=y, z=0.0) for x, y in V.reshape(-1, 2).tolist()]
+    return msg
 
 
 def _set_measured_forces(msg: FeasibilityReport, measured) -> None:

@@ -5,18 +5,20 @@ from __future__ import annotations
 from dataclasses import replace
 
 from awp_ros_msgs.msg import FeasibilityReport, LegPolytopes, WrenchPolytope
+from geometry_msgs.msg import PolygonStamped
 import numpy as np
 from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
 from awp_ros.evaluation.result import FeasibilityResult, WrenchSetResult
-from awp_ros.ros.conversions import leg_polytopes_msg, wrench_polytope_msg
+from awp_ros.ros.conversions import leg_polytopes_msg, region_polygon_msg, wrench_polytope_msg
 from awp_ros.ros.markers import build_markers, error_markers, MarkerStyle
 
 __all__ = ['Cycle', 'OUTPUTS']
 
 #: Output topics (relative to the node, ``~/<name>``) in the order of :meth:`Cycle.messages`.
-OUTPUTS = ('report', 'awp', 'fwp', 'fws', 'leg_polytopes', 'markers')
+OUTPUTS = ('report', 'awp', 'fwp', 'fws', 'leg_polytopes', 'markers', 'feasible_region',
+           'support_region')
 
 
 class Cycle:
@@ -78,6 +80,30 @@ class Cycle:
         """Return the FWS message when it was computed for this message, else None."""
         return self._wrench('fws')
 
+    def feasible_region(self) -> PolygonStamped | None:
+        """
+        Return the feasible region (PolygonStamped) when the FWS was computed for this message.
+
+        Frame the wrench frame, points [m] relative to the CoM at ``z = 0``; a segment (two
+        stance legs) has 2 points, a point (one leg) 1, an empty region none. None when the
+        FWS was not computed for this message (the reports carry the latest margin).
+        """
+        if self.result is None or not self.fws_computed or self.result.fws is None:
+            return None
+        if 'feasible_region' not in self._cache:
+            self._cache['feasible_region'] = region_polygon_msg(self.header,
+                                                                self.result.feasible_region)
+        return self._cache['feasible_region']
+
+    def support_region(self) -> PolygonStamped | None:
+        """Return the support region (PolygonStamped, as above; None when not evaluated)."""
+        if self.result is None:
+            return None
+        if 'support_region' not in self._cache:
+            self._cache['support_region'] = region_polygon_msg(self.header,
+                                                               self.result.support_region)
+        return self._cache['support_region']
+
     def leg_polytopes(self) -> LegPolytopes | None:
         """Return the LegPolytopes message (None when not evaluated)."""
         if self.result is None:
@@ -106,7 +132,7 @@ class Cycle:
             return error_markers, (self._marker_header, self.report.status_message), {
                 'style': self._style}
         r = self.result
-        slim = replace(r, awp=replace(r.awp, polytope=None),
+        slim = replace(r, awp=replace(r.awp, polytope=None), cwc=None,
                        fws=None if r.fws is None else replace(r.fws, polytope=None))
         fws = None if self._latest_fws is None else replace(self._latest_fws, polytope=None)
         R, t = self._marker_frame
@@ -118,5 +144,6 @@ class Cycle:
         """Return every output of this message: topic name (``OUTPUTS``) -> message."""
         out = {'report': self.report, 'awp': self.awp(), 'fwp': self.fwp(),
                'fws': self.fws(), 'leg_polytopes': self.leg_polytopes(),
-               'markers': self.markers()}
+               'markers': self.markers(), 'feasible_region': self.feasible_region(),
+               'support_region': self.support_region()}
         return {k: v for k, v in out.items() if v is not None}

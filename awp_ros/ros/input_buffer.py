@@ -3,7 +3,10 @@ Pairing of the contacts and imu inputs with joint states, by stamp.
 
 :class:`InputBuffer` keeps the received messages of one input topic and picks the one
 current at a joint state's stamp; :func:`stale_reason` says why a picked message cannot be
-used with that joint state (none yet, or more than ``stale_timeout_s`` away from its stamp).
+used with that joint state (none yet, older than its input's timeout, or more than
+``stale_timeout_s`` later than the joint state). A contacts message holds until the next
+one (``contacts_timeout_s`` 0, the default): publishers that publish contacts only when
+they change are served as well as periodic ones.
 """
 
 from __future__ import annotations
@@ -74,21 +77,30 @@ class InputBuffer:
             self.head = 0
 
 
-def stale_reason(ns: int, inputs: Sequence[tuple[str, object]], stale_timeout_s: float) -> str:
+def stale_reason(ns: int, inputs: Sequence[tuple], stale_timeout_s: float) -> str:
     """
     Return why the inputs cannot be used with a joint state at ``ns`` [ns], or ''.
 
-    :param inputs: (topic, picked message or None) pairs, checked in order.
-    :param stale_timeout_s: largest stamp difference either way [s]; 0 disables the check.
+    :param inputs: ``(topic, picked message or None)`` or ``(topic, message, max_age_s)``
+        items, checked in order; ``max_age_s`` replaces ``stale_timeout_s`` for how much
+        older than the joint state that input may be (0: any age, the message holds until
+        the next one).
+    :param stale_timeout_s: largest stamp difference either way [s] (the inputs' default
+        age and how much later than the joint state any input may be); 0 disables it.
     """
     timeout = int(stale_timeout_s * 1e9)
-    for topic, msg in inputs:
+    for item in inputs:
+        topic, msg = item[0], item[1]
         if msg is None:
             return f'no {topic} message received yet'
         age = ns - stamp_to_ns(msg.header.stamp)
-        if timeout > 0 and age > timeout:
+        if len(item) > 2:
+            max_age, name = int(item[2] * 1e9), f'{topic}_timeout_s {item[2]:g}'
+        else:
+            max_age, name = timeout, f'stale_timeout_s {stale_timeout_s:g}'
+        if max_age > 0 and age > max_age:
             return (f'{topic} is stale: its stamp is {age * 1e-9:.3f} s older than the '
-                    f'joint state (stale_timeout_s {stale_timeout_s:g})')
+                    f'joint state ({name})')
         if timeout > 0 and -age > timeout:
             return (f'{topic} stamp is {-age * 1e-9:.3f} s later than the joint state '
                     f'(stale_timeout_s {stale_timeout_s:g}): clocks that disagree, '

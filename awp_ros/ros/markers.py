@@ -15,6 +15,14 @@ What is drawn (the seed's Fig. 1 plus the wrench), each namespace stating its fo
   :math:`\{f : [f; \tau_{now}] \in FWP\}`, drawn from the CoM: the wrench arrow's tip is
   inside it exactly when the wrench is in the FWP. It is 3D with 3-4 stance legs, a polygon
   with 2 legs (the FWP is 5D), at most a point with 1 leg (not drawn).
+- ``support_region`` (blue), ``fwp_region`` (yellow) and ``feasible_region`` (green): the
+  CoM regions (:mod:`awp_ros.wrench.com_region`) as filled ``TRIANGLE_LIST`` polygons,
+  drawn flat on the stance feet's mean height (the ground under the CoM; the CoM height
+  without a stance foot), each a few millimetres above the previous; a segment (two
+  stance legs) is a ``LINE_STRIP``, a point (one leg) a small ``SPHERE``, an empty region
+  nothing. ``com_projection``: a ``SPHERE`` at the CoM's vertical projection on that
+  plane, green inside the feasible region, red outside, grey without one. The feasible
+  region is the latest computed (with the FWS), the others the cycle's.
 - ``com`` (white ``SPHERE``), ``stance_feet`` (white ``SPHERE_LIST``) and ``margins``
   (``TEXT_VIEW_FACING`` lines above the CoM, one per set, green when the wrench is in the
   set (margin >= 0 on its affine hull), red when not, grey when not computed).
@@ -53,7 +61,13 @@ _COLORS = {
     'positive': (0.20, 0.85, 0.20, 1.00),
     'negative': (1.00, 0.20, 0.20, 1.00),
     'unknown': (0.70, 0.70, 0.70, 1.00),
+    'support_region': (0.30, 0.60, 1.00, 0.30),
+    'fwp_region': (1.00, 0.85, 0.20, 0.35),
+    'feasible_region': (0.20, 0.85, 0.35, 0.50),
 }
+#: Drawing order of the CoM regions (bottom first) and their height steps above the plane.
+_REGION_ORDER = ('support_region', 'fwp_region', 'feasible_region')
+_REGION_STEP = 0.003    # [m]
 
 
 @dataclass(frozen=True)
@@ -184,10 +198,57 @@ def build_markers(result: FeasibilityResult, header: Header, *,
         out.add('stance_feet', 0, Marker.SPHERE_LIST, _COLORS['com'],
                 points=np.array([leg.position for leg in legs]), scale=(c, c, c))
     fws = result.fws if fws is None else fws
+    _regions(out, result, fws, style)
     lines = [(name.upper(), r) for name, r in (('awp', result.awp), ('fwp', fwp),
                                                ('fws', fws))]
     _margin_texts(out, lines, style, status_text)
     return MarkerArray(markers=out.markers)
+
+
+def _regions(out: _Builder, result: FeasibilityResult, fws: WrenchSetResult | None,
+             style: MarkerStyle) -> None:
+    """Add the CoM regions and the CoM's projection, flat on the stance feet's height."""
+    legs = list(result.legs.values())
+    z0 = float(np.mean([leg.position[2] for leg in legs])) if legs else 0.0
+    regions = {'support_region': getattr(result, 'support_region', None),
+               'fwp_region': result.fwp.region,
+               'feasible_region': None if fws is None else fws.region}
+    for i, name in enumerate(_REGION_ORDER):
+        region = regions[name]
+        if region is None or region.is_empty:
+            continue
+        z = z0 + _REGION_STEP * (i + 1)
+        V = np.column_stack([region.vertices, np.full(region.vertices.shape[0], z)])
+        rgba = _COLORS[name]
+        if region.dimension == 2:
+            k = V.shape[0]
+            fan = np.stack([np.repeat(V[:1], k - 2, axis=0), V[1:-1], V[2:]], axis=1)
+            tri = np.concatenate([fan, fan[:, ::-1]])         # both sides
+            out.add(name, 0, Marker.TRIANGLE_LIST, rgba, points=tri)
+        elif region.dimension == 1:
+            out.add(name, 0, Marker.LINE_STRIP, rgba[:3] + (1.0,), points=V,
+                    scale=(style.arrow_diameter / 2,) * 3)      # x: the line width
+        else:
+            c = style.com_diameter / 2
+            out.add(name, 0, Marker.SPHERE, rgba[:3] + (1.0,), position=V[0],
+                    scale=(c, c, c))
+    feasible = regions['feasible_region']
+    margin = math.nan if feasible is None else feasible.margin
+    rgba = _COLORS['unknown'] if not math.isfinite(margin) else \
+        _COLORS['positive' if margin >= 0.0 else 'negative']
+    c = 0.6 * style.com_diameter
+    z = z0 + _REGION_STEP * (len(_REGION_ORDER) + 1)
+    out.add('com_projection', 0, Marker.SPHERE, rgba, position=np.array([0.0, 0.0, z]),
+            scale=(c, c, c))
+    parts = []
+    for name in reversed(_REGION_ORDER):
+        r = regions[name]
+        value = 'n/a' if r is None else 'empty' if r.is_empty else f'{r.margin:+.3f}'
+        parts.append(f'{name.split("_")[0]} {value}')
+    out.add('region_margins', 0, Marker.TEXT_VIEW_FACING, rgba,
+            position=np.array([0.0, 0.0, z + style.text_height]),
+            scale=(0.0, 0.0, 0.8 * style.text_height),
+            text='CoM region margins [m]: ' + ', '.join(parts))
 
 
 def _margin_texts(out: _Builder, lines, style: MarkerStyle, status_text: str) -> None:

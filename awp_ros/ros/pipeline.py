@@ -38,7 +38,6 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Mapping
 from dataclasses import replace
-import math
 import os
 import time
 
@@ -55,11 +54,13 @@ from awp_ros.estimation.motion import MotionEstimator
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.evaluation.result import WrenchSetResult
 from awp_ros.geometry.linalg import quaternion_matrix
-from awp_ros.robot.config import load_config, RobotConfig, ros_parameters
+from awp_ros.robot.config import check_keys, load_config, RobotConfig, ros_parameters
 from awp_ros.robot.state import RobotState
+from awp_ros.ros.contact_source import EffortContacts
 from awp_ros.ros.conversions import error_report, report_msg, robot_state_from_msgs, stamp_to_ns
 from awp_ros.ros.cycle import Cycle
 from awp_ros.ros.input_buffer import InputBuffer, stale_reason
+from awp_ros.ros.joint_merge import JointMerger
 from awp_ros.ros.markers import MarkerStyle
 from awp_ros.ros.pipeline_params import PipelineParams
 
@@ -108,6 +109,8 @@ class Pipeline:
         self._latest_fws: WrenchSetResult | None = None
         self._latest_fws_stamp: Time | None = None
         self._latest_fws_stance: tuple | None = None
+        self._merger = self._new_merger()
+        self._effort = self._new_effort_contacts()
 
     @classmethod
     def from_parameters(cls, params: Mapping, *, base_dir: str | os.PathLike | None = None,
@@ -115,13 +118,18 @@ class Pipeline:
         """
         Build a pipeline from the node's parameters (a parameters file's mapping, or flat).
 
-        The robot comes from the ``robot`` key (a config name or path) when the mapping has
-        no ``robot_name`` of its own, else from the mapping's robot keys (``urdf`` relative
-        to ``base_dir``); ``robot_description`` (URDF XML) replaces the URDF when non-empty.
+        The robot comes from the ``robot`` key (a config name or path, its robot keys
+        overridden by the mapping's) when the mapping has no ``urdf`` or ``feet`` of its
+        own, else from the mapping's robot keys (``urdf`` relative to ``base_dir``);
+        ``robot_description`` (URDF XML) replaces the URDF when non-empty.
+
+        :raises ConfigError: a key no reader knows (named with its close matches), a bad
+            value, a required robot key missing.
         """
         flat = ros_parameters(params)
-        if flat.get('robot') and not flat.get('robot_name'):
-            config = load_config(flat['robot'])
+        check_keys(flat)
+        if flat.get('robot') and 'urdf' not in flat and 'feet' not in flat:
+            config = load_config(flat['robot'], overrides=flat)
         else:
             config = RobotConfig.from_dict(flat, base_dir=base_dir)
         if flat.get('robot_description'):
@@ -156,6 +164,8 @@ class Pipeline:
         self._latest_fws_stance = None
         self._estimator = self._new_estimator()
         self._evaluated.clear()
+        self._merger = self._new_merger()
+        self._effort = self._new_effort_contacts()
 
     def set_params(self, params: PipelineParams) -> None:
         """
@@ -170,19 +180,59 @@ class Pipeline:
         if params.acceleration_cutoff_hz != old.acceleration_cutoff_hz \
                 or params.stale_timeout_s != old.stale_timeout_s:
             self._estimator = self._new_estimator()
+        if (params.joint_states_timeout_s, params.ignored_joints) \
+                != (old.joint_states_timeout_s, old.ignored_joints):
+            self._merger.timeout_ns = int(round(params.joint_states_timeout_s * 1e9))
+            self._merger.ignored = frozenset(params.ignored_joints)
+            self._merger.extra -= self._merger.ignored
+        if (params.contact_force_on_n, params.contact_force_off_n) \
+                != (old.contact_force_on_n, old.contact_force_off_n):
+            self._effort = self._new_effort_contacts()
 
     def _new_estimator(self) -> MotionEstimator:
         """Return a motion estimator for the model and parameters in use (no history)."""
         p = self.params
-        age = p.stale_timeout_s if p.stale_timeout_s > 0.0 else math.inf
+        age = p.stale_timeout_s if p.stale_timeout_s > 0.0 else 1e9   # 0: no age limit
+        # History as deep as the input buffer: a node lagging behind its joint states holds
+        # the IMU readings of the whole lag (with 32, a lag over 64 ms at 500 Hz silently
+        # paired no IMU: level base, no base acceleration).
         return MotionEstimator(self.evaluator.model, cutoff_hz=p.acceleration_cutoff_hz,
-                               max_imu_age_s=age, max_odometry_age_s=age)
+                               max_imu_age_s=age, max_odometry_age_s=age,
+                               history=self._imu.maxlen)
+
+    def _new_merger(self) -> JointMerger:
+        """Return a joint-state merger for the model and parameters in use (no values)."""
+        p = self.params
+        return JointMerger(self.evaluator.model.joint_names, timeout_s=p.joint_states_timeout_s,
+                           ignored=p.ignored_joints)
+
+    def _new_effort_contacts(self) -> EffortContacts:
+        """Return the effort stance detector for the model and thresholds in use."""
+        p = self.params
+        return EffortContacts(self.evaluator, on_n=p.contact_force_on_n,
+                              off_n=p.contact_force_off_n)
+
+    @property
+    def extra_joints(self) -> set[str]:
+        """Return the joints seen in joint_states that the model does not have (not ignored)."""
+        return self._merger.extra
+
+    @property
+    def normal_forces(self):
+        """Return the last measured normal forces [N] of every foot (``contact_source`` effort)."""
+        return self._effort.normal_forces
 
     # -- inputs ----------------------------------------------------------------------------
 
     def on_contacts(self, msg: ContactState) -> None:
-        """Keep a contact state for the joint states it precedes (validated with them)."""
-        self._contacts.add(msg)
+        """
+        Keep a contact state for the joint states it precedes (validated with them).
+
+        Ignored unless ``contact_source`` is ``topic``. A contacts message holds until the
+        next one, unless ``contacts_timeout_s`` > 0.
+        """
+        if self.params.contact_source == 'topic':
+            self._contacts.add(msg)
 
     def on_imu(self, msg: Imu) -> None:
         """
@@ -280,11 +330,18 @@ class Pipeline:
             return Cycle.unevaluated(report)
         ns = stamp_to_ns(msg.header.stamp)
         header = Header(stamp=msg.header.stamp, frame_id=p.wrench_frame_id)
-        if self._last_js_ns is not None and ns < self._last_js_ns:
+        # Messages of several publishers, each with a subset of the joints, interleave out
+        # of stamp order by up to the merge timeout: only a larger step back is one.
+        back = 0 if self._merger.is_full(msg.name) else self._merger.timeout_ns
+        if self._last_js_ns is not None and ns < self._last_js_ns - back:
             notes.append(f'joint_states stamp went back by {(self._last_js_ns - ns) * 1e-9:.6g}'
                          ' s; throttles restarted')
             self._last_fws_ns = self._last_marker_ns = None
-        self._last_js_ns = ns
+            self._merger.clear()
+            self._effort.reset()
+            self._last_js_ns = ns
+        elif self._last_js_ns is None or ns > self._last_js_ns:
+            self._last_js_ns = ns
         markers_due = p.marker_rate_hz > 0.0 and _due(self._last_marker_ns, ns,
                                                       p.marker_rate_hz)
         if markers_due:
@@ -292,12 +349,16 @@ class Pipeline:
         result = None
         fws_computed = False
         R = np.eye(3)
-        contacts = self._contacts.pick(ns)
+        source = p.contact_source
+        contacts = self._contacts.pick(ns) if source == 'topic' else None
         imu = self._imu.pick(ns) if p.use_imu else None
         try:
-            inputs = [('contacts', contacts)] + ([('imu', imu)] if p.use_imu else []) \
+            joints = self._merger.add(msg, ns)          # str: why the merged state is not
+            inputs = ([('contacts', contacts, p.contacts_timeout_s)] if source == 'topic'
+                      else []) + ([('imu', imu)] if p.use_imu else []) \
                 + ([('odom', self._odom.pick(ns))] if p.use_odometry else [])
-            stale = stale_reason(ns, inputs, p.stale_timeout_s)
+            stale = joints if isinstance(joints, str) else \
+                stale_reason(ns, inputs, p.stale_timeout_s)
             if not stale and self._imu_error and (p.use_imu or p.use_odometry):
                 raise InputError(self._imu_error)
             if stale:
@@ -305,12 +366,19 @@ class Pipeline:
                                       '; '.join(notes + [stale]))
             else:
                 state = robot_state_from_msgs(
-                    msg, contacts, imu, feet=self.evaluator.feet,
-                    use_velocities=p.use_joint_velocities, use_efforts=p.use_joint_efforts,
-                    joint_names=self._joint_names, notes=notes)
+                    joints, contacts, imu, feet=self.evaluator.feet,
+                    use_velocities=p.use_joint_velocities,
+                    use_efforts=p.use_joint_efforts or source == 'effort', notes=notes)
                 if p.use_imu or p.use_odometry or p.measured_motion:
                     self._add_motion(ns, state, p)
-                result = self.evaluator.evaluate(state, fws=False)
+                if source == 'effort':
+                    state.stance = self._effort.update(state)
+                    if not p.use_joint_efforts:
+                        state.joint_efforts = None
+                elif source == 'all':
+                    state.stance = list(self.evaluator.feet)
+                result = self.evaluator.evaluate(state, fws=False,
+                                                 base_velocity_known=p.use_odometry)
                 if not result.stance:
                     notes.append('no foot in contact: every wrench set is {0}, no wrench '
                                  'but zero is feasible')

@@ -1,7 +1,10 @@
 """
-The pipeline's parameters: :class:`PipelineParams` and their descriptions.
+The pipeline's parameters: :class:`PipelineParams` and their descriptions; the node's keys.
 
 Shared by ``awp_node`` (its parameter descriptors) and the offline replay (a params file).
+ROS-free (no rclpy, no messages): :data:`PIPELINE_KEYS` and :data:`NODE_KEYS` are the
+pipeline's and the node's part of the parameters schema
+(:func:`awp_ros.robot.config.parameter_schema`), which the core loader reads too.
 """
 
 from __future__ import annotations
@@ -11,14 +14,17 @@ from dataclasses import dataclass, fields
 import math
 
 from awp_ros.errors import ConfigError
-from awp_ros.robot.config import ros_parameters
+from awp_ros.robot.config import close_matches, ConfigKey, ros_parameters
 
-__all__ = ['MOTIONS', 'PARAMETER_DOCS', 'PipelineParams']
+__all__ = ['CONTACT_SOURCES', 'MOTIONS', 'NODE_KEYS', 'PARAMETER_DOCS', 'PIPELINE_KEYS',
+           'PipelineParams']
 
 
 #: Values of ``motion``: ``auto`` = ``measured`` when the IMU or odometry is on, else
 #: ``quasi_static``.
 MOTIONS = ('auto', 'measured', 'quasi_static')
+#: Values of ``contact_source``: where the stance comes from (see PARAMETER_DOCS).
+CONTACT_SOURCES = ('topic', 'effort', 'all')
 
 
 @dataclass(frozen=True)
@@ -40,6 +46,12 @@ class PipelineParams:
     acceleration_cutoff_hz: float = 100.0
     use_joint_efforts: bool = True
     hull_tolerance: float = 3.0
+    contact_source: str = 'topic'
+    contact_force_on_n: float = 20.0
+    contact_force_off_n: float = 10.0
+    contacts_timeout_s: float = 0.0
+    joint_states_timeout_s: float = 0.1
+    ignored_joints: tuple[str, ...] = ()
 
     @property
     def measured_motion(self) -> bool:
@@ -52,8 +64,16 @@ class PipelineParams:
         """Validate every field (raise ConfigError naming the bad value)."""
         if self.motion not in MOTIONS:
             raise ConfigError(f"motion must be one of {', '.join(MOTIONS)}, got {self.motion!r}")
+        if self.contact_source not in CONTACT_SOURCES:
+            raise ConfigError(f"contact_source must be one of {', '.join(CONTACT_SOURCES)}, "
+                              f'got {self.contact_source!r}'
+                              + close_matches(str(self.contact_source), CONTACT_SOURCES))
+        if not all(isinstance(j, str) and j for j in self.ignored_joints):
+            raise ConfigError(f'ignored_joints must be a list of joint names, got '
+                              f'{list(self.ignored_joints)!r}')
         for name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz', 'max_queue_delay_s',
-                     'hull_tolerance'):
+                     'hull_tolerance', 'contact_force_on_n', 'contact_force_off_n',
+                     'contacts_timeout_s', 'joint_states_timeout_s'):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ConfigError(f'{name} must be a finite number >= 0, got {value!r}')
@@ -66,6 +86,10 @@ class PipelineParams:
                               f'{self.wrench_frame_id!r}')
         if not isinstance(self.marker_frame_id, str):
             raise ConfigError(f'marker_frame_id must be a string, got {self.marker_frame_id!r}')
+        if self.contact_force_off_n > self.contact_force_on_n:
+            raise ConfigError(f'contact_force_off_n ({self.contact_force_off_n:g} N) must not '
+                              f'exceed contact_force_on_n ({self.contact_force_on_n:g} N): the '
+                              'foot touches down above on and lifts off below off')
 
     @classmethod
     def from_dict(cls, params: Mapping) -> PipelineParams:
@@ -89,6 +113,10 @@ class PipelineParams:
                     if isinstance(value, bool) or not isinstance(value, (int, float)):
                         raise ConfigError(f'{f.name} must be a number, got {value!r}')
                     value = float(value)
+                elif isinstance(default, tuple):
+                    if isinstance(value, str) or not hasattr(value, '__iter__'):
+                        raise ConfigError(f'{f.name} must be a list, got {value!r}')
+                    value = tuple(value)
                 kw[f.name] = value
         return cls(**kw)
 
@@ -100,8 +128,10 @@ PARAMETER_DOCS = {
     'marker_frame_id': "frame of the markers: '' = wrench_frame_id (set it as RViz's fixed "
                        'frame, no TF needed), or the URDF root link (e.g. base_link) to '
                        'overlay the robot model',
-    'stale_timeout_s': 'contacts/imu older than this w.r.t. the joint-state stamp give a '
-                       'STATUS_STALE_INPUT report [s]; 0 disables the check',
+    'stale_timeout_s': 'imu/odom older than this w.r.t. the joint-state stamp, or any input '
+                       'stamped more than this later than it (clocks that disagree), give a '
+                       'STATUS_STALE_INPUT report [s]; 0 disables the check (contacts: '
+                       'contacts_timeout_s)',
     'fws_rate_hz': 'rate of the FWS computation (H-rep, directional and Euclidean margins) '
                    'by joint-state stamps [Hz]; 0 = every cycle; a stance change forces it',
     'marker_rate_hz': 'marker publication rate by joint-state stamps [Hz]; 0 = no markers',
@@ -120,8 +150,9 @@ PARAMETER_DOCS = {
                     'the base orientation when there is no IMU (read-only)',
     'motion': "what the wrench and leg biases are computed for: 'measured' (the motion of "
               'the IMU, odometry and differentiated joint velocities: w = [m (cdd - g); '
-              "dL/dt], biases with M qdd + c), 'quasi_static' (the robot standing still: "
-              "w = [0, 0, m g, 0, 0, 0]) or 'auto' (measured when use_imu or use_odometry)",
+              "dL/dt], biases with M qdd + c), 'quasi_static' (no accelerations: w = [0, 0, "
+              'm g, 0, 0, 0] plus, with use_joint_velocities, the velocity-product terms) or '
+              "'auto' (measured when use_imu or use_odometry)",
     'acceleration_cutoff_hz': 'cut-off of the causal 2nd-order Butterworth differentiators of '
                               'the joint velocities and the IMU angular velocity [Hz]; lag '
                               'sqrt(2) / (2 pi f_c) (2.25 ms at 100 Hz)',
@@ -132,4 +163,82 @@ PARAMETER_DOCS = {
                       'on the 5D hull of two stance legs only up to its estimation error '
                       '(measured: max 1.6 on the default bag, 2 in the analytic-motion test), '
                       'so 3 by default; 0 = the feasibility tolerance (1e-6)',
+    'contact_source': "where the stance comes from: 'topic' (the contacts topic, "
+                      "awp_ros_msgs/ContactState), 'effort' (from joint_states efforts: a "
+                      'foot is in stance while the normal component n . f of its measured '
+                      'contact force f = J^-T (b - tau) is above the thresholds below; '
+                      "needs efforts, no contacts topic) or 'all' (every foot in stance, for "
+                      'standing tests; no contacts topic) (read-only)',
+    'contact_force_on_n': "contact_source 'effort': a swing foot touches down when its "
+                          'measured normal force rises above this [N]',
+    'contact_force_off_n': "contact_source 'effort': a stance foot lifts off when its "
+                           'measured normal force falls below this (<= contact_force_on_n: '
+                           'the hysteresis that keeps a foot from chattering) [N]',
+    'contacts_timeout_s': 'a contacts message holds until the next one (publishers that '
+                          'publish on change); > 0: contacts older than this w.r.t. the '
+                          'joint-state stamp give a STATUS_STALE_INPUT report [s]',
+    'joint_states_timeout_s': 'joint_states messages may carry subsets of the joints (several '
+                              "publishers): each joint's latest value is used, and a joint "
+                              'state is evaluated when every model joint has a value stamped '
+                              'at most this long before it, else STATUS_STALE_INPUT naming '
+                              'the joints [s]; 0 = any age',
+    'ignored_joints': 'joints in joint_states that the model does not have and that are '
+                      'ignored silently (wheels, an arm); other such joints are ignored too, '
+                      'listed once in /diagnostics',
 }
+
+
+def _kind(default) -> str:
+    """Return the schema kind of a default value."""
+    if isinstance(default, bool):
+        return 'bool'
+    if isinstance(default, float):
+        return 'double'
+    if isinstance(default, int):
+        return 'integer'
+    if isinstance(default, tuple):
+        return 'string_array'
+    return 'string'
+
+
+#: Read-only pipeline parameters (they decide which topics the node subscribes to).
+READ_ONLY = ('use_imu', 'use_odometry', 'contact_source')
+
+#: The pipeline's keys of the parameters schema (from PipelineParams and PARAMETER_DOCS).
+PIPELINE_KEYS: dict[str, ConfigKey] = {
+    f.name: ConfigKey(_kind(f.default), f.default, PARAMETER_DOCS.get(f.name, ''),
+                      group='pipeline', read_only=f.name in READ_ONLY)
+    for f in fields(PipelineParams)}
+
+_NODE = {     # name: (default, description, read-only)
+    'robot': ('', "robot config name or YAML path to start from ('' = the robot keys given "
+              'as parameters, else hyq)', True),
+    'robot_description': ('', 'URDF XML (as robot_state_publisher takes it); replaces urdf '
+                          'when non-empty', False),
+    'qos_depth': (10000, 'keep-last depth of the input subscriptions and the report publisher '
+                  '(10000 = 10 s of 1 kHz joint states of backlog)', True),
+    'qos_reliability': ('reliable', "input QoS reliability: 'reliable' or 'best_effort' "
+                        '(matches best-effort publishers)', True),
+    'contacts_durability': ('volatile', "durability of the contacts subscription: 'volatile' "
+                            "or 'transient_local' (receives the last contacts message of a "
+                            'transient-local publisher that published it before the node '
+                            'started: on-change publishers; does not match a volatile '
+                            'publisher)', True),
+    'executor': ('single_threaded', "rclpy executor: 'single_threaded' or 'events' "
+                 '(rclpy.experimental.EventsExecutor)', True),
+    'diagnostics_period_s': (1.0, 'period of /diagnostics [s]', True),
+    'drain_budget_s': (0.02, 'after a joint state, the node takes the next ones straight from '
+                       'the input queues (and waits for them) for up to this long before '
+                       'returning to the rclpy executor (timers, parameter services): ~0.2 ms '
+                       'less per message [s]; 0 = only those queued', True),
+    'marker_worker': (True, 'build the markers in a worker process (off the joint-state loop; '
+                      '~3 ms each); a marker due while two wait for the worker is skipped and '
+                      'counted in /diagnostics; false = in the node', True),
+    'blas_threads': (1, 'threads of the BLAS under numpy/scipy in this process '
+                     '(threadpoolctl); 1 avoids the stalls of busy-waiting BLAS threads on '
+                     'cores shared with DDS and other processes; 0 = leave as is', True),
+}
+#: The node-only keys of the parameters schema (``awp_node``; the replay ignores them).
+NODE_KEYS: dict[str, ConfigKey] = {
+    name: ConfigKey(_kind(default), default, doc, group='node', read_only=ro)
+    for name, (default, doc, ro) in _NODE.items()}

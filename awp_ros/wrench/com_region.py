@@ -93,6 +93,7 @@ import math
 
 import numpy as np
 from scipy.optimize import linprog
+from scipy.spatial import ConvexHull, QhullError
 
 from awp_ros.errors import GeometryError, InputError
 from awp_ros.geometry.polytope import Polytope
@@ -308,7 +309,7 @@ _U_CHAIN = _directions(_CHAIN_DIRECTIONS)
 _SHIFT_CHAIN = (np.arange(_CHAIN_DIRECTIONS) - 1) % _CHAIN_DIRECTIONS
 _FILTER_ROWS = 160     # up to this many rows, no first filter
 _FILTER_SLACK = 1e-9   # relative: points this close to the first chain are kept
-_MAX_ROUNDS = 200
+_MAX_ROUNDS = 20
 
 
 def _polar(Dm: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
@@ -363,7 +364,20 @@ def _polar(Dm: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
         if float(worst.max()) <= 0.0:
             return index[chain], V
         chain = np.union1d(chain, excess[worst > 0.0].argmax(axis=1))
-    raise GeometryError(f'the CoM polygon did not converge in {_MAX_ROUNDS} rounds')
+    # Rare: the sampled chain keeps missing hull vertices; take the exact 2D hull (qhull).
+    try:
+        hull = ConvexHull(Dm.T)
+    except QhullError as exc:
+        raise GeometryError(f'the CoM polygon: qhull failed on the dual points: {exc}') from exc
+    chain = np.sort(hull.vertices)        # Dm is sorted by angle: index order is ccw
+    C = Dm[:, chain]
+    Cn = C[:, _shift(chain.size, 1)]
+    det = C[0] * Cn[1] - C[1] * Cn[0]
+    if chain.size < 3 or float(det.min()) <= 0.0:
+        raise InputError(_UNBOUNDED)
+    V = (Cn - C)[::-1] / det
+    V[1] *= -1.0
+    return index[chain], V
 
 
 def _chain_vertices(points: list[list[float]]) -> np.ndarray | None:

@@ -7,7 +7,7 @@ efforts ``tau_k`` [N.m], the leg's equations of motion ``tau_k = b_k - J_k^T f_k
 
 .. math::
 
-    f_k = J_k^{-T} (b_k - 	au_k) \quad [N] \qquad (1)
+    f_k = J_k^{-T} (b_k - \tau_k) \quad [N] \qquad (1)
 
 (least squares, ``J_k^{T\#}``, when the leg does not have 3 joints or is singular). Then
 
@@ -19,7 +19,7 @@ efforts ``tau_k`` [N.m], the leg's equations of motion ``tau_k = b_k - J_k^T f_k
   joint's upper limit for ``tau_j >= 0`` and minus its lower limit otherwise [-];          (3)
 - the **external wrench**: the measured contact wrench minus the gravito-inertial one,
 
-  .. math:: w_{ext} = \sum_k egin{bmatrix} f_k \ p_k 	imes f_k \end{bmatrix} - w
+  .. math:: w_{ext} = \sum_k \begin{bmatrix} f_k \\ p_k \times f_k \end{bmatrix} - w
             \quad [N, N.m] \qquad (4)
 
   about the CoM, world-aligned axes: what the model does not explain (a push, a payload,

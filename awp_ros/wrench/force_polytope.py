@@ -24,6 +24,19 @@ replaced by the seed's pseudo-inverse image ``{pinv(J^T)(bias - tau)}`` (a flat 
 and flagged ``singular``. Near-singular legs keep the exact set and are flagged
 ``near_singular``.
 
+Legs with fewer than 3 joints (a planar 2-joint leg, Solo8's) are flat by design: the
+actuators push only within the span of J's columns (the leg's plane), and J^T is one-to-one
+there, so the force set is exactly
+
+.. math:: (4)\quad \mathcal F = \{f \in \mathrm{range}(J) : \tau_{min} \le \mathrm{bias}
+    - J^T f \le \tau_{max}\} = \{J^{T+} (\mathrm{bias} - \tau) : \tau_{min} \le \tau
+    \le \tau_{max}\}
+
+(forces across the plane are held by the structure, not the actuators: they are not in
+the set), a parallelogram (n = 2) or a segment (n = 1). Such a leg is singular, and flagged,
+only when J is rank-deficient within its own rank ``n``: singularity is judged on the ratio
+of J's smallest to largest singular value, of ``min(n, 3)`` values.
+
 The module also holds the small 3D converters used for every per-leg polytope:
 :func:`polytope_from_halfspaces` (vertex enumeration, vectorised over all triples of
 planes) and :func:`polytope_from_points` (convex hull of a few points, any dimension).
@@ -102,25 +115,29 @@ def force_polytope(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray,
     :param near_singular_rtol: below this ratio the leg is flagged ``near_singular``.
     :param tol: relative tolerance of the vertex enumeration (n > 3).
     :return: a :class:`Polytope` in R^3 [N]; ``meta`` holds ``singular``,
-        ``near_singular``, ``sigma_ratio`` and, for parallelepipeds and pseudo-inverse
-        images, ``center`` (3,) and ``generators`` (3, n) with ``F = {c - G s}``.
+        ``near_singular``, ``sigma_ratio`` (of J's ``min(n, 3)`` singular values),
+        ``planar`` (n < 3: flat by design, eq. 4) and, for parallelepipeds, pseudo-inverse
+        images and legs with n < 3, ``center`` (3,) and ``generators`` (3, max(n, 3)) with
+        ``F = {c - G s}`` (zero columns beyond n).
     """
     J = np.asarray(J, dtype=float)
     bias = np.asarray(bias, dtype=float)
     n = J.shape[1]
-    sv = np.linalg.svd(J, compute_uv=False)
-    ratio = float(sv[-1] / sv[0]) if sv[0] > 0.0 and sv.size == 3 else 0.0
+    sv = np.linalg.svd(J, compute_uv=False)          # min(n, 3) values: the leg's own rank
+    ratio = float(sv[-1] / sv[0]) if sv.size and sv[0] > 0.0 else 0.0
     meta = {'singular': ratio <= singular_rtol,
             'near_singular': singular_rtol < ratio <= near_singular_rtol,
-            'sigma_ratio': ratio}
+            'sigma_ratio': ratio, 'planar': n < 3}
     h = 0.5 * (tau_max - tau_min)
     mid = 0.5 * (tau_max + tau_min)
-    if meta['singular']:
+    if meta['singular'] or n < 3:                       # (4) for n < 3: exact, flat
         JinvT = np.linalg.pinv(J.T, rcond=singular_rtol)
         center = JinvT @ (bias - mid)
         G = JinvT * h[None, :]
         signs = np.array(list(itertools.product((-1.0, 1.0), repeat=n)))
         P = polytope_from_points(center[None, :] - signs @ G.T, tol=tol)
+        if n < 3:       # zero columns: the same set, the (3, 3) shape of the AWP zonotope
+            G = np.concatenate([G, np.zeros((3, 3 - n))], axis=1)
         meta.update(center=center, generators=G)
         return Polytope(P.dimension, P.vertices, P.A, P.b, P.hull_origin, P.hull_basis, meta)
     if n == 3:

@@ -47,7 +47,11 @@ def test_subprocess_standing_state_from_stdin_matches_the_library():
     assert d['mass'] == pytest.approx(r.mass)
     assert list(d['legs']) == ['lf_foot', 'rf_foot', 'lh_foot']
     assert len(d['legs']['lf_foot']['force_polytope']['vertices']) == 8
-    assert set(d['fws']['directional']['fz']) == {'plus', 'minus'}
+    # The directional margins' values (checked against LPs in test_evaluator.py).
+    assert set(d['fws']['directional']) == set(r.fws.directional)
+    for axis, (plus, minus) in r.fws.directional.items():
+        assert d['fws']['directional'][axis]['plus'] == pytest.approx(plus, rel=1e-9)
+        assert d['fws']['directional'][axis]['minus'] == pytest.approx(minus, rel=1e-9)
 
 
 def test_subprocess_bad_input_exits_2_with_one_line(tmp_path):
@@ -124,3 +128,41 @@ def test_bench_prints_a_table_and_a_json_line_of_medians(capsys):
     assert summary['total_ms'] > 0 and summary['cwc_fwp_ms'] > 0
     assert bench_cli.main(['-n', '0']) == 2
     assert bench_cli.main(['--robot', 'nosuchbot', '-n', '1']) == 2
+
+
+def test_eval_json_has_the_com_regions(monkeypatch, capsys):
+    doc = {'posture': 'standing', 'stance': ['lf_foot', 'rf_foot', 'lh_foot'],
+           'base_twist': [0.2, 0.0, 0.0, 0.0, 0.0, 0.0]}
+    code, out, err = run_main(monkeypatch, capsys, doc, '--no-halfspaces')
+    assert code == 0, err
+    got = json.loads(out)
+    ev = FeasibilityEvaluator('hyq')
+    from awp_ros.cli.eval import state_from_json
+    ref = ev.evaluate(state_from_json(doc, ev))
+    for name in ('feasible_region', 'support_region', 'fwp_region'):
+        region = getattr(ref, name)
+        assert got[name]['dimension'] == region.dimension == 2
+        assert got[name]['vertices'] == region.vertices.tolist()
+        assert got[name]['margin'] == region.margin
+    assert got['capture_point_margin'] == ref.capture_point_margin
+    assert 'regions' in got['timings_ms'] and 'feasible_region' in got['timings_ms']
+    code, out, _ = run_main(monkeypatch, capsys, {'posture': 'standing', 'stance': []},
+                            '--no-fws')
+    got = json.loads(out)
+    assert got['feasible_region'] is None                         # not computed
+    assert got['support_region']['vertices'] == [] and got['support_region']['margin'] is None
+
+
+def test_bench_times_the_regions_and_their_baseline(capsys):
+    assert bench_cli.main(['-n', '2', '--warmup', '0', '--baseline-samples', '1']) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    rows = {line.split()[0]: float(line.split()[1]) for line in lines[2:-1]}
+    summary = json.loads(lines[-1])
+    for key in ('regions_ms', 'regions_baseline_ms', 'regions_stage_ms', 'regions_speedup'):
+        assert summary[key] > 0, key
+    assert summary['regions_speedup'] == rows['regions_speedup']
+    assert summary['regions_speedup'] == pytest.approx(
+        rows['regions_baseline'] / rows['regions_fws_cwc'], rel=0.01)
+    times = bench_cli.run_benchmark(FeasibilityEvaluator('hyq'), 3, warmup=0,
+                                    baseline_samples=2)
+    assert times['regions_fws_cwc'].shape == (3,) and times['regions_baseline'].shape == (2,)

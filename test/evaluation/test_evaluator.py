@@ -18,7 +18,7 @@ from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.robot.model import resolve_urdf
 from awp_ros.robot.state import RobotState
 from awp_ros.wrench.friction_polytope import friction_halfspaces, friction_polytope
-from cases import G, M_BASE, M_FOOT, toy_urdf
+from cases import G, M_BASE, M_FOOT, toy_urdf, vertex_sums
 
 ROBOTS = ('hyq', 'anymal_c', 'go2', 'solo12')
 
@@ -813,3 +813,37 @@ def test_fws_directional_margins_equal_an_lp_on_the_definition(hyq, case):
         assert r.fws.feasible and min(values) > 0.0
     if case == 'lunge':
         assert not r.fws.feasible and min(values) < 0.0
+
+
+def test_two_joint_legs_are_planar_by_design_not_singular():
+    """Solo8 (example-robot-data's solo.urdf): 2-joint sagittal legs, no HAA."""
+    cfg = RobotConfig.from_dict({
+        'urdf': 'example-robot-data://solo_description/robots/solo.urdf',
+        'feet': ['FL_FOOT', 'FR_FOOT', 'HL_FOOT', 'HR_FOOT'],
+        'torque_limits': {f'{leg}_{j}': 2.7 for leg in ('FL', 'FR', 'HL', 'HR')
+                          for j in ('HFE', 'KFE')}})
+    ev = FeasibilityEvaluator(cfg)
+    q = {'FL_HFE': 0.8, 'FL_KFE': -1.6, 'FR_HFE': 0.8, 'FR_KFE': -1.6,
+         'HL_HFE': -0.8, 'HL_KFE': 1.6, 'HR_HFE': -0.8, 'HR_KFE': 1.6}
+    res = ev.evaluate(RobotState(joint_positions=q))
+    assert res.warnings == [] and not any(leg.singular for leg in res.legs.values())
+    assert all(leg.force_polytope.dimension == 2 for leg in res.legs.values())
+    # The legs push in their sagittal planes: every force has f_y = 0.
+    assert all(np.max(np.abs(leg.force_polytope.vertices[:, 1])) < 1e-9
+               for leg in res.legs.values())
+    # The AWP (a zonotope with zero generator columns, H-rep) equals the Minkowski sum of
+    # the legs' vertex sets by brute force (every sum of lifted vertices): support
+    # functions in random directions, by LP over the H-rep and its affine hull.
+    p = np.array([leg.position for leg in res.legs.values()])
+    ref = vertex_sums(p, [leg.force_polytope.vertices for leg in res.legs.values()])
+    awp = res.awp.polytope
+    C, d_eq = awp.equalities
+    assert awp.dimension == 5
+    for d in np.random.default_rng(3).normal(size=(30, 6)):
+        lp = linprog(-d, A_ub=awp.A, b_ub=awp.b, A_eq=C, b_eq=d_eq,
+                     bounds=[(None, None)] * 6, method='highs')
+        assert lp.status == 0
+        assert -lp.fun == pytest.approx(np.max(ref @ d), rel=1e-7, abs=1e-6)
+    # A stretched knee is singular within the leg's own rank, and flagged.
+    res = ev.evaluate(RobotState(joint_positions=dict(q, FL_KFE=0.0)))
+    assert res.legs['FL_FOOT'].singular and "leg 'FL_FOOT' is singular" in res.warnings[0]

@@ -28,6 +28,8 @@ ROSDEP_KEYS = {
     'builtin_interfaces': 'builtin_interfaces',
     'rcl_interfaces': 'rcl_interfaces',
     'threadpoolctl': 'python3-threadpoolctl',
+    'nav_msgs': 'nav_msgs',
+    'ament_index_python': 'ament_index_python',
 }
 
 
@@ -49,7 +51,8 @@ def test_package_xml_validates_and_lists_every_run_dependency(repo):
     assert package.package_format == 3
     assert package.get_build_type() == 'ament_python'
     run_keys = {d.name for d in package.exec_depends + package.build_export_depends}
-    imported = _imported_top_modules((repo / 'awp_ros').glob('*.py'))
+    imported = _imported_top_modules((repo / 'awp_ros').rglob('*.py'))
+    assert {'rclpy', 'numpy', 'pinocchio', 'awp_ros_msgs'} <= imported     # it reads them all
     missing = sorted(ROSDEP_KEYS[m] for m in imported if m in ROSDEP_KEYS
                      and ROSDEP_KEYS[m] not in run_keys)
     assert not missing, f'package.xml lacks exec_depend on {missing}'

@@ -48,8 +48,7 @@ S = FeasibilityReport
 OK, WARNING, INVALID, STALE, ERROR = (S.STATUS_OK, S.STATUS_WARNING, S.STATUS_INVALID_INPUT,
                                       S.STATUS_STALE_INPUT, S.STATUS_ERROR)
 FEET = ['lf_foot', 'rf_foot', 'lh_foot', 'rh_foot']
-DIAG_PERIOD_S = 0.2
-CONTACTS_LEAD_S = 0.05
+DIAG_PERIOD_S = 0.05             # also how fast the node confirms a contacts message
 
 
 def _domain() -> int:
@@ -72,18 +71,34 @@ class Session:
         self.reports = self.probe.subscribe(FeasibilityReport, 'awp_node/report', depth=10000)
         self.diag = self.probe.subscribe(DiagnosticArray, '/diagnostics', depth=1000)
         self.last_ns = 0
+        self.contacts_sent = 0
 
     def now_ns(self) -> int:
         """Return a fresh stamp, later than every stamp used so far."""
         self.last_ns = max(time.time_ns(), self.last_ns + 1000)
         return self.last_ns
 
-    def send_contacts(self, msg: ContactState, ns: int) -> None:
-        _stamp(msg, ns)
+    def publish_contacts(self, msg: ContactState) -> None:
         self.contacts.publish(msg)
-        # Delivered long before the joint state that follows (wait_for_all_acked would wait
-        # for Fast DDS's heartbeat, up to 3 s); the node's executor takes it first.
-        time.sleep(CONTACTS_LEAD_S)
+        self.contacts_sent += 1
+
+    def send_contacts(self, msg: ContactState, ns: int) -> None:
+        """Publish a contact state and wait until the node has received it."""
+        _stamp(msg, ns)
+        self.publish_contacts(msg)
+        # Another topic than the joint state that follows: no ordering across topics, so
+        # wait for the node's own count (its /diagnostics) instead of sleeping.
+        want = self.contacts_sent
+
+        def received() -> bool:
+            with self.probe.lock:
+                arrays = list(self.diag)
+            for arr in reversed(arrays):
+                for st in arr.status:
+                    if st.name == 'awp_node: inputs':
+                        return int(_values(st)['contacts received (total)']) >= want
+            return False
+        wait_until(received, 10.0, f'the node to receive {want} contacts messages')
 
     def send_js(self, msg: JointState, ns: int) -> FeasibilityReport:
         """Publish a joint state stamped ``ns``; return the report answering it."""
@@ -100,6 +115,20 @@ class Session:
             return bool(found)
         wait_until(arrived, timeout, f'the report stamped {ns}')
         return found[0]
+
+    def wait_all_reports(self, timeout: float = 30.0) -> None:
+        """Wait until as many reports arrived as the node says it published (in total)."""
+        def done() -> bool:
+            with self.probe.lock:
+                arrays, n = list(self.diag), len(self.reports)
+            for arr in reversed(arrays):
+                for st in arr.status:
+                    if st.name == 'awp_node: evaluation':
+                        total = sum(int(v) for k, v in _values(st).items()
+                                    if k.startswith('reports ') and k.endswith(' (total)'))
+                        return total == n
+            return False
+        wait_until(done, timeout, 'every report the node published')
 
     def diag_count(self) -> int:
         with self.probe.lock:
@@ -336,7 +365,7 @@ def test_a_burst_of_mixed_inputs_gets_one_report_each_in_order(session, ref):
     for i in range(300):                       # ~500 Hz, every third one bad
         ns = session.now_ns()
         if i % 50 == 49:                       # fresh contacts, 10 Hz
-            session.contacts.publish(_stamp(contacts(), ns - 1000))
+            session.publish_contacts(_stamp(contacts(), ns - 1000))
         bad = i % 3 == 1
         q = posture(ref, lf_hfe_joint=math.nan) if bad else ref.model.standing_q
         session.js.publish(_stamp(joints(ref, q), ns))
@@ -345,7 +374,9 @@ def test_a_burst_of_mixed_inputs_gets_one_report_each_in_order(session, ref):
         time.sleep(0.002)
     wait_until(lambda: len([r for r in list(session.reports) if _ns(r.header.stamp)
                             >= stamps[0]]) >= len(stamps), 30, 'the burst reports')
-    time.sleep(0.3)                               # a duplicate would arrive by now
+    # Every report the node published (its own count, /diagnostics) has arrived: a
+    # duplicate would be among them.
+    session.wait_all_reports()
     with session.probe.lock:
         got = [r for r in session.reports if _ns(r.header.stamp) >= stamps[0]]
     assert [_ns(r.header.stamp) for r in got] == stamps

@@ -70,3 +70,60 @@ def test_sequence_gaps_count_and_an_unknown_number_starts_over():
     assert d.sequence('joint_states', 8) == 0 and d.sequence('joint_states', 10) == 1
     assert d.sequence('joint_states', 3) == 0            # a new publisher starts over
     assert d.inputs['joint_states'].gaps == 3
+
+
+def test_two_interleaved_publishers_show_no_gaps_and_a_real_gap_is_counted_once():
+    d = NodeDiagnostics('n', 'hyq', ['joint_states'])
+    d.matched('joint_states', 2)
+    # legs (1, 2, 3, ...) and arm (1, 2, ...) interleaved, arm starting later.
+    seqs = [1, 2, 1, 3, 2, 4, 3, 5, 4]
+    assert [d.sequence('joint_states', s) for s in seqs] == [0] * len(seqs)
+    assert d.sequence('joint_states', 8) == 2       # legs 6 and 7 missing (5 -> 8)
+    assert d.sequence('joint_states', 5) == 0       # arm continues
+    assert d.sequence('joint_states', 1) == 0       # a restarted publisher starts over
+    assert d.inputs['joint_states'].gaps == 2
+    # One publisher left: its sequence continues, the stale one is dropped.
+    d.matched('joint_states', 1)
+    assert d.sequence('joint_states', 9) == 0 and d.sequence('joint_states', 11) == 1
+
+
+def test_each_input_problem_names_its_topic():
+    d = NodeDiagnostics('awp_node', 'a1', ['joint_states', 'contacts', 'imu'],
+                        names={'joint_states': '/robot/joint_states', 'contacts': '/contacts',
+                               'imu': '/imu'},
+                        types={'joint_states': 'sensor_msgs/msg/JointState',
+                               'contacts': 'awp_ros_msgs/msg/ContactState',
+                               'imu': 'sensor_msgs/msg/Imu'})
+    d.graph('joint_states', ['sensor_msgs/msg/JointState'])
+    d.incompatible_qos('joint_states', 1, 'RELIABILITY')
+    d.graph('contacts', [])
+    d.graph('imu', ['nav_msgs/msg/Odometry'])
+    inputs = d.build(Time(), wall=1.0).status[0]
+    assert inputs.level == DiagnosticStatus.ERROR
+    assert inputs.message.startswith('no joint_states received yet: /robot/joint_states has 1 '
+                                     'publisher with incompatible QoS (RELIABILITY: a '
+                                     'best-effort publisher')
+    assert '/contacts has no publisher' in inputs.message
+    assert ('/imu has publishers of another type (1 of type nav_msgs/msg/Odometry); this node '
+            'subscribes with sensor_msgs/msg/Imu') in inputs.message
+    v = _values(inputs)
+    assert v['imu topic'] == '/imu' and 'Odometry' in v['imu problem']
+    # Once messages arrive and the publishers match, the problems go.
+    for topic in ('joint_states', 'contacts', 'imu'):
+        d.received(topic, 1.5)
+        d.graph(topic, [d.inputs[topic].msg_type])
+    d.incompatible_qos('joint_states', 0, '')
+    inputs = d.build(Time(), wall=2.0).status[0]
+    assert inputs.level == DiagnosticStatus.OK, inputs.message
+
+
+def test_on_change_contacts_are_not_stale_and_extra_joints_are_one_entry():
+    d = NodeDiagnostics('n', 'hyq', ['joint_states', 'contacts'], stale_timeout_s=0.5)
+    d.topic_timeouts['contacts'] = 0.0          # contacts_timeout_s 0: holds until the next
+    d.extra_joints = {'wheel_joint', 'arm_joint'}
+    d.received('contacts', 0.0)
+    d.received('joint_states', 9.9)
+    inputs = d.build(Time(), wall=10.0).status[0]
+    assert inputs.level == DiagnosticStatus.OK, inputs.message
+    assert _values(inputs)['joint_states ignored joints (not in the model)'] == \
+        'arm_joint, wheel_joint'

@@ -8,7 +8,9 @@ import pytest
 import yaml
 
 from awp_ros.errors import ConfigError
-from awp_ros.robot.config import available_configs, config_dirs, load_config, RobotConfig
+from awp_ros.robot.config import (available_configs, check_keys, config_dirs,
+                                  find_parameters_file, load_config, read_parameters, ROBOT_KEYS,
+                                  RobotConfig, srdf_standing_posture, urdf_robot_name)
 
 REPO = Path(__file__).resolve().parents[2]
 SHIPPED = ['anymal_c', 'go2', 'hyq', 'solo12']
@@ -65,8 +67,9 @@ def test_nested_and_dotted_keys_give_the_same_config():
     assert a.torque_limits == {'j1': (-5.0, 5.0), 'j2': (-1.0, 3.0)}
 
 
-def test_unknown_keys_are_ignored_and_sections_merge():
-    params = {'/**': {'ros__parameters': dict(BASE, marker_rate_hz=30.0)},
+def test_node_keys_are_accepted_and_sections_merge():
+    params = {'/**': {'ros__parameters': dict(BASE, marker_rate_hz=30.0, qos_depth=10,
+                                              use_sim_time=False)},
               'awp_node': {'ros__parameters': {'friction_coefficient': 0.4}}}
     cfg = RobotConfig.from_dict(params)
     assert cfg.friction_coefficient == 0.4
@@ -148,3 +151,116 @@ def test_shipped_configs_parse_as_ros_parameter_files_to_the_same_config():
                 cfg.contact_normal, cfg.friction_coefficient, cfg.pyramid_sides, cfg.urdf) \
             == (ref.feet, ref.leg_joints, ref.torque_limits, ref.standing_posture,
                 ref.contact_normal, ref.friction_coefficient, ref.pyramid_sides, ref.urdf)
+
+
+# -- the schema: minimal configs, unknown keys, limits of unknown joints ---------------------
+
+A1_URDF = 'example-robot-data://a1_description/urdf/a1.urdf'
+A1_FEET = ['FL_foot', 'FR_foot', 'RL_foot', 'RR_foot']
+
+
+def test_a_minimal_config_takes_every_default_of_the_schema(tmp_path):
+    path = tmp_path / 'my_a1.yaml'
+    path.write_text(yaml.safe_dump({'/**': {'ros__parameters': {'urdf': A1_URDF,
+                                                                'feet': A1_FEET}}}))
+    cfg = load_config(path)
+    # The defaults written here, not read from the schema: what the README promises.
+    assert cfg.robot_name == 'a1'                     # the URDF's file name
+    assert cfg.friction_coefficient == 0.7 and cfg.contact_normal == (0.0, 0.0, 1.0)
+    assert cfg.pyramid_sides == 4 and cfg.leg_joints == {} and cfg.torque_limits == {}
+    assert cfg.standing_posture == {}
+    defaults = RobotConfig('x', 'y', ('f',))
+    for name, spec in ROBOT_KEYS.items():
+        if spec.default is not None and name != 'robot_name':
+            got = getattr(defaults, name)
+            assert (list(got) if isinstance(got, tuple) else got) == spec.default, name
+    assert [k for k, spec in ROBOT_KEYS.items() if spec.required] == ['urdf', 'feet']
+
+
+def test_the_robot_name_defaults_to_the_urdf_name():
+    assert urdf_robot_name(A1_URDF) == 'a1'
+    assert urdf_robot_name('/some/dir/go1.urdf') == 'go1'
+    assert urdf_robot_name('<?xml version="1.0"?>\n<robot name="talos"><link name="a"/>'
+                           '</robot>') == 'talos'
+    cfg = RobotConfig.from_dict({'urdf': '<robot name="toy"/>', 'feet': ['a']})
+    assert cfg.robot_name == 'toy'
+
+
+@pytest.mark.parametrize(('params', 'match'), [
+    ({'friction_coeficient': 0.3}, r"'friction_coeficient' \(did you mean "
+                                   r"'friction_coefficient'\?\)"),
+    ({'torque_limit': {'j1': 3.0}}, r"'torque_limit' \(did you mean 'torque_limits'\?\)"),
+    ({'stale_timout_s': 1.0}, r"did you mean 'stale_timeout_s'"),
+    ({'frobnicate': 1}, r"unknown parameter: 'frobnicate'; the known keys"),
+    ({'leg_joints': ['a', 'b']}, r'leg_joints must give one value per foot'),
+    ({'friction_coefficient.a_foot': 0.5}, r'friction_coefficient is a single value'),
+])
+def test_unknown_or_misshapen_keys_are_errors_naming_them(params, match):
+    with pytest.raises(ConfigError, match=match):
+        RobotConfig.from_dict(dict(BASE, **params))
+
+
+def test_a_typo_in_a_file_names_the_file_and_every_reader_refuses_it(tmp_path):
+    path = tmp_path / 'a1.yaml'
+    path.write_text(yaml.safe_dump({'/**': {'ros__parameters': {
+        'urdf': A1_URDF, 'feet': A1_FEET, 'friction_coeficient': 0.3, 'fws_rate_hx': 3.0}}}))
+    with pytest.raises(ConfigError, match=str(path)) as err:
+        load_config(path)
+    assert "'fws_rate_hx' (did you mean 'fws_rate_hz'?)" in str(err.value)
+    with pytest.raises(ConfigError, match='friction_coeficient'):
+        check_keys(read_parameters(path)[0])
+
+
+def test_torque_limits_of_unknown_or_non_leg_joints_are_errors():
+    from awp_ros.robot.model import RobotModel
+
+    base = {'urdf': A1_URDF, 'feet': A1_FEET}
+    with pytest.raises(ConfigError, match='torque_limits.FL_calf_jiont: the URDF has no joint '
+                                          r".*did you mean 'FL_calf_joint'"):
+        RobotModel(RobotConfig.from_dict(dict(base, torque_limits={'FL_calf_jiont': 30.0})))
+    # A joint of the URDF that drives no foot (here: every leg but FL is left out).
+    with pytest.raises(ConfigError, match=r"torque_limits.RR_calf_joint: joint 'RR_calf_joint' "
+                                          'drives no foot'):
+        RobotModel(RobotConfig.from_dict(dict(base, feet=['FL_foot'],
+                                              torque_limits={'RR_calf_joint': 30.0})))
+    model = RobotModel(RobotConfig.from_dict(dict(base, torque_limits={'FL_calf_joint': 30.0})))
+    assert list(model.legs['FL_foot'].tau_max) == [33.5, 33.5, 30.0]   # URDF effort 33.5
+
+
+def test_configs_are_found_by_name_or_path_with_or_without_suffix(tmp_path, monkeypatch):
+    path = tmp_path / 'a1.yaml'
+    path.write_text(yaml.safe_dump({'urdf': A1_URDF, 'feet': A1_FEET}))
+    assert find_parameters_file(str(path)) == path
+    assert find_parameters_file(path) == path
+    monkeypatch.chdir(tmp_path)
+    assert find_parameters_file('a1.yaml') == Path('a1.yaml')       # a relative path
+    with pytest.raises(ConfigError, match="unknown robot 'hyk' .*did you mean 'hyq'"):
+        find_parameters_file('hyk')
+    with pytest.raises(ConfigError, match='does not exist'):
+        find_parameters_file(str(tmp_path / 'b1.yaml'))
+
+
+def test_load_config_overrides_robot_keys_per_item():
+    cfg = load_config('hyq', overrides={'friction_coefficient': 0.3,
+                                        'torque_limits.lf_kfe_joint': 99.0,
+                                        'fws_rate_hz': 3.0})
+    ref = load_config('hyq')
+    assert cfg.friction_coefficient == 0.3
+    assert cfg.torque_limits['lf_kfe_joint'] == (-99.0, 99.0)
+    assert {k: v for k, v in cfg.torque_limits.items() if k != 'lf_kfe_joint'} == \
+        {k: v for k, v in ref.torque_limits.items() if k != 'lf_kfe_joint'}
+    with pytest.raises(ConfigError, match='did you mean'):
+        load_config('hyq', overrides={'friction_coeficient': 0.3})
+
+
+def test_the_srdf_standing_state_beside_a_urdf():
+    from awp_ros.robot.model import resolve_urdf, RobotModel
+
+    cfg = RobotConfig.from_dict({'urdf': A1_URDF, 'feet': A1_FEET})
+    model = RobotModel(cfg)
+    posture, srdf = srdf_standing_posture(resolve_urdf(cfg.urdf)[1], model.joint_names)
+    # a1.srdf's <group_state name="standing">, written here by hand.
+    expected = {f'{leg}_{j}_joint': v for leg in ('FL', 'FR', 'RL', 'RR')
+                for j, v in (('hip', 0.0), ('thigh', 0.8), ('calf', -1.81))}
+    assert posture == expected and srdf.name == 'a1.srdf'
+    assert srdf_standing_posture(resolve_urdf(cfg.urdf)[1], ['no_such_joint']) is None

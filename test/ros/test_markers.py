@@ -171,3 +171,41 @@ def test_render_markers_writes_a_png_of_the_offline_pipeline(tmp_path):
     assert main(['--robot', 'hyq', '--stance', 'lf_foot,rh_foot', '-o', str(out)]) == 0
     data = out.read_bytes()
     assert data[:8] == b'\x89PNG\r\n\x1a\n' and len(data) > 20_000
+
+
+@pytest.mark.parametrize('stance', [None, ['lf_foot', 'rh_foot'], ['rf_foot'], []])
+def test_com_regions_are_filled_polygons_on_the_feet_height(evaluator, stance):
+    r = evaluator.evaluate(evaluator.standing_state(stance=stance))
+    m = _check_well_formed(build_markers(r, Header(frame_id='w')), 'w')
+    legs = list(r.legs.values())
+    z0 = float(np.mean([leg.position[2] for leg in legs])) if legs else 0.0
+    for name in ('support_region', 'fwp_region', 'feasible_region'):
+        region = getattr(r, name)
+        if region.is_empty:
+            assert (name, 0) not in m
+            continue
+        mk = m[(name, 0)]
+        pts = np.array([[p.x, p.y, p.z] for p in mk.points]) if mk.points else \
+            np.array([[mk.pose.position.x, mk.pose.position.y, mk.pose.position.z]])
+        assert np.ptp(pts[:, 2]) == 0.0 and 0.0 < pts[0, 2] - z0 < 0.02      # flat, just above
+        assert all(np.min(np.linalg.norm(region.vertices - p[:2], axis=1)) < 1e-12
+                   for p in pts)
+        if region.dimension == 2:
+            assert mk.type == Marker.TRIANGLE_LIST
+            # Both windings: twice the polygon's area (shoelace on its vertices).
+            x, y = region.vertices.T
+            shoelace = 0.5 * abs(x @ np.roll(y, -1) - y @ np.roll(x, -1))
+            assert _area(pts.reshape(-1, 3, 3)) == pytest.approx(2 * shoelace, rel=1e-12)
+        elif region.dimension == 1:
+            assert mk.type == Marker.LINE_STRIP and len(pts) == 2
+        else:
+            assert mk.type == Marker.SPHERE
+    proj = m[('com_projection', 0)]
+    p = proj.pose.position
+    assert (p.x, p.y) == (0.0, 0.0) and p.z > z0
+    margin = r.feasible_region.margin
+    if math.isnan(margin):
+        assert proj.color.r == proj.color.g                      # grey: no feasible region
+    else:
+        assert (proj.color.g > proj.color.r) == (margin >= 0.0)
+    assert 'CoM region margins [m]' in m[('region_margins', 0)].text

@@ -10,7 +10,7 @@ from geometry_msgs.msg import Vector3
 import numpy as np
 import pytest
 from scipy.optimize import linprog
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 
 from awp_ros.errors import ConfigError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
@@ -20,7 +20,7 @@ from awp_ros.ros.conversions import polytope_from_msg, stamp_to_ns
 from awp_ros.ros.cycle import OUTPUTS
 from awp_ros.ros.pipeline import Pipeline
 from awp_ros.ros.pipeline_params import PipelineParams
-from cases import contacts_msg, FEET, joints_msg, stamp, T0
+from cases import contacts_msg, efforts_for, FEET, joints_msg, stamp, T0
 
 S = FeasibilityReport
 
@@ -60,7 +60,7 @@ def test_report_equals_the_evaluator_for_the_same_state(evaluator):
 
 
 def test_every_joint_state_gets_a_report_whatever_is_wrong(evaluator):
-    pl = _pipeline()
+    pl = _pipeline(contacts_timeout_s=0.5)
     js = joints_msg(evaluator, T0)
     first = pl.on_joint_state(js)
     assert first.report.status == S.STATUS_STALE_INPUT
@@ -243,3 +243,134 @@ def test_pyramid_sides_from_the_config_reach_reports_polytopes_and_markers(evalu
     pyramids = [m for m in cycle.markers().markers if m.ns.startswith('friction_pyramid')]
     assert len(pyramids) == 4
     assert all(len(m.points) == 6 * sides for m in pyramids)
+
+
+def test_stale_timeout_zero_disables_the_staleness_check(evaluator):
+    pl = _pipeline(stale_timeout_s=0.0)
+    pl.on_contacts(contacts_msg(T0))
+    rep = pl.on_joint_state(joints_msg(evaluator, T0 + 10 * 10**9)).report   # 10 s later
+    assert rep.status == S.STATUS_OK, rep.status_message
+    ref = evaluator.evaluate(evaluator.standing_state())
+    assert rep.fwp_margin == pytest.approx(ref.fwp.margin, abs=1e-9)
+
+
+def test_a_node_lagging_far_behind_pairs_each_joint_state_with_its_imu(evaluator):
+    # A node 100 joint states (0.2 s at 500 Hz) behind has taken every IMU reading of its
+    # lag before it evaluates the first joint state: each joint state still gets the
+    # motion of the reading at its stamp, the reports equal those of the recorded order.
+    # (The estimator's IMU history was 32 readings: beyond a 64 ms lag the base was level
+    # and unaccelerated, silently.)
+    ms, n = 10**6, 100
+
+    def imu(i):
+        msg = stamp(Imu(), T0 + 2 * i * ms)
+        roll = 0.05 * math.sin(0.05 * i)
+        msg.orientation.x, msg.orientation.w = math.sin(roll / 2), math.cos(roll / 2)
+        msg.angular_velocity.x = 1.25 * math.cos(0.05 * i)
+        a = msg.linear_acceleration
+        a.x, a.y, a.z = 1.5 * math.sin(0.03 * i), -1.0, 9.81 + 0.5 * math.cos(0.04 * i)
+        return msg
+
+    def wrench(rep):
+        f, t = rep.wrench.force, rep.wrench.torque
+        return [f.x, f.y, f.z, t.x, t.y, t.z]
+
+    in_order, lagging = _pipeline(use_imu=True), _pipeline(use_imu=True)
+    for pl in (in_order, lagging):
+        pl.on_contacts(contacts_msg(T0))
+    expected = []
+    for i in range(n):
+        in_order.on_imu(imu(i))
+        expected.append(in_order.on_joint_state(
+            joints_msg(evaluator, T0 + 2 * i * ms, dq=0.002 * i)).report)
+    for i in range(n):
+        lagging.on_imu(imu(i))
+    for i, ref in enumerate(expected):
+        rep = lagging.on_joint_state(joints_msg(evaluator, T0 + 2 * i * ms, dq=0.002 * i)).report
+        assert rep.status == ref.status <= S.STATUS_WARNING, rep.status_message
+        assert rep.status_message == ref.status_message
+        assert wrench(rep) == wrench(ref), i
+        assert rep.fwp_margin == ref.fwp_margin
+    # The readings' motion is in the wrench: tens of N sideways (none when standing still).
+    assert max(math.hypot(*wrench(r)[:2]) for r in expected) > 20.0
+
+
+# -- real robots' conventions: on-change contacts, no contacts, split joint states --------
+
+
+def test_a_contacts_message_holds_until_the_next_one_unless_a_timeout_is_set(evaluator):
+    pl = _pipeline()
+    pl.on_contacts(contacts_msg(T0, stance=['lf_foot', 'rf_foot', 'rh_foot']))
+    for dt_s in (0.001, 0.6, 30.0):            # an on-change publisher: one message
+        rep = pl.on_joint_state(joints_msg(evaluator, T0 + int(dt_s * 1e9))).report
+        assert rep.status == S.STATUS_OK, rep.status_message
+        assert list(rep.stance_feet) == ['lf_foot', 'rf_foot', 'rh_foot']
+    pl = _pipeline(contacts_timeout_s=0.5)
+    pl.on_contacts(contacts_msg(T0))
+    rep = pl.on_joint_state(joints_msg(evaluator, T0 + 6 * 10**8)).report
+    assert rep.status == S.STATUS_STALE_INPUT
+    assert 'contacts is stale: its stamp is 0.600 s older' in rep.status_message
+    assert 'contacts_timeout_s 0.5' in rep.status_message
+
+
+def test_contact_source_all_needs_no_contacts_topic(evaluator):
+    pl = _pipeline(contact_source='all', fws_rate_hz=0.0)
+    pl.on_contacts(contacts_msg(T0, stance=[]))            # ignored
+    rep = pl.on_joint_state(joints_msg(evaluator, T0)).report
+    assert rep.status == S.STATUS_OK, rep.status_message
+    assert list(rep.stance_feet) == FEET
+    ref = evaluator.evaluate(evaluator.standing_state())
+    assert rep.fwp_margin == pytest.approx(ref.fwp.margin, abs=1e-9)
+
+
+def test_contact_source_effort_takes_the_stance_from_the_efforts(evaluator):
+    joints = dict(zip(evaluator.model.joint_names, evaluator.model.standing_q.tolist()))
+    forces = {'lf_foot': [0.0, 0.0, 280.0], 'rf_foot': [5.0, 0.0, 290.0],
+              'lh_foot': [0.0, 0.0, 3.0], 'rh_foot': [0.0, -5.0, 270.0]}
+    tau = efforts_for(evaluator, joints, forces)
+    pl = _pipeline(contact_source='effort', fws_rate_hz=0.0)
+    msg = joints_msg(evaluator, T0)
+    msg.effort = [tau[n] for n in msg.name]
+    rep = pl.on_joint_state(msg).report
+    assert rep.status == S.STATUS_OK, rep.status_message
+    stance = ['lf_foot', 'rf_foot', 'rh_foot']
+    assert list(rep.stance_feet) == stance
+    ref = evaluator.evaluate(RobotState(joint_positions=joints, stance=stance,
+                                        joint_efforts=tau))
+    for name in ('awp', 'fwp', 'fws'):
+        assert getattr(rep, f'{name}_margin') == pytest.approx(getattr(ref, name).margin,
+                                                               abs=1e-9)
+    np.testing.assert_allclose(pl.normal_forces, [280.0, 290.0, 3.0, 270.0], atol=1e-4)
+    msg.effort = []
+    rep = pl.on_joint_state(stamp(msg, T0 + 10**6)).report
+    assert rep.status == S.STATUS_INVALID_INPUT and 'carry no efforts' in rep.status_message
+
+
+def test_joint_states_from_two_publishers_are_merged_without_warnings(evaluator):
+    pl = _pipeline(fws_rate_hz=0.0)
+    pl.on_contacts(contacts_msg(T0))
+    names = list(evaluator.model.joint_names)
+    q = evaluator.model.standing_q + 0.02
+    front = [i for i, n in enumerate(names) if n.startswith(('lf', 'rf'))]
+    hind = [i for i, n in enumerate(names) if n.startswith(('lh', 'rh'))]
+
+    def part(idx, ns, extra=()):
+        return stamp(JointState(name=[names[i] for i in idx] + list(extra),
+                                position=[float(q[i]) for i in idx] + [0.5] * len(extra)), ns)
+
+    first = pl.on_joint_state(part(front, T0 + 10**6)).report
+    assert first.status == S.STATUS_STALE_INPUT and 'lh_haa_joint' in first.status_message
+    reports = []
+    for k in range(1, 6):                   # hind stamped slightly before front: out of order
+        reports.append(pl.on_joint_state(part(hind, T0 + k * 10**6 + 10**6 - 2000,
+                                              extra=['arm_joint', 'wheel'])).report)
+        reports.append(pl.on_joint_state(part(front, T0 + (k + 1) * 10**6 - 1000)).report)
+    ref = evaluator.evaluate(RobotState(joint_positions=dict(zip(names, q.tolist()))))
+    for rep in reports:
+        assert rep.status == S.STATUS_OK, rep.status_message      # no 'went back', no note
+        assert rep.fwp_margin == pytest.approx(ref.fwp.margin, abs=1e-9)
+    assert pl.extra_joints == {'arm_joint', 'wheel'}
+    quiet = Pipeline('hyq', PipelineParams(ignored_joints=('arm_joint', 'wheel')))
+    quiet.on_contacts(contacts_msg(T0))
+    quiet.on_joint_state(part(range(len(names)), T0, extra=['arm_joint', 'wheel']))
+    assert quiet.extra_joints == set()

@@ -14,12 +14,13 @@ from __future__ import annotations
 
 import dataclasses
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
 from scipy.optimize import linprog
-from scipy.spatial import HalfspaceIntersection
+from scipy.spatial import ConvexHull, HalfspaceIntersection
 
 from awp_ros.errors import InputError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
@@ -496,3 +497,26 @@ def test_lines_cutting_less_than_the_tolerance_are_dropped():
     rows = rows_set(np.vstack([A, diagonals]),
                     np.concatenate([b, np.full(4, 200.0 - 1e-3 * np.sqrt(2.0) * f[2])]))
     assert com_region(rows, f, np.zeros(3)).vertices.shape == (8, 2)
+
+
+def test_a_slice_the_sampled_chain_misses_falls_back_to_the_exact_hull():
+    """
+    Check the FWS slice of the default bag at t = 3.402 s (3 legs, 303 rows) against qhull.
+
+    The sampled support chain kept missing hull vertices there; the region must still be
+    the polygon qhull finds for the same rows.
+    """
+    data = np.load(Path(__file__).parent / 'data' / 'fws_3legs_default_bag_t3402.npz')
+    A, b, w = data['A'], data['b'], data['w']
+    P = Polytope(6, np.zeros((0, 6)), A, b, np.zeros(6), np.eye(6))
+    region = com_region(P, w[:3], w[3:])
+    w0, D = com_wrench_map(w[:3], w[3:])
+    N2, h = A @ D, b - A @ w0
+    keep = np.linalg.norm(N2, axis=1) > 1e-9
+    hs = HalfspaceIntersection(np.hstack([N2[keep], -h[keep, None]]), np.zeros(2))
+    ref = hs.intersections[ConvexHull(hs.intersections).vertices]
+    assert region.dimension == 2 and len(region.vertices) == len(ref)
+    for v in ref:
+        assert np.min(np.linalg.norm(region.vertices - v, axis=1)) < 1e-6
+    distances = h[keep] / np.linalg.norm(N2[keep], axis=1)     # the CoM is inside
+    assert region.margin == pytest.approx(float(np.min(distances)))

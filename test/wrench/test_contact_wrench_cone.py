@@ -161,3 +161,79 @@ def test_bad_input_raises():
         contact_wrench_cone(FEET[:2], UP[:2], 0.5, sides=2)
     with pytest.raises(InputError, match='positions'):
         contact_wrench_cone(FEET[:2], UP[:3], 0.5)
+
+
+# -- tilted per-foot normals and mu, N sides: against an LP on the definition -------------
+
+
+def definition_rows(n, mu, sides):
+    """Rows ``a . f <= 0`` of the N-sided pyramid, written from eq. (1) (not the module)."""
+    n = np.asarray(n, dtype=float) / np.linalg.norm(n)
+    t1 = np.array([1.0, 0.0, 0.0]) - n[0] * n
+    t1 /= np.linalg.norm(t1)
+    t2 = np.cross(n, t1)
+    th = 2 * np.pi * np.arange(sides) / sides
+    return np.cos(th)[:, None] * t1 + np.sin(th)[:, None] * t2 - mu * np.cos(np.pi / sides) * n
+
+
+def lp_in_cwc(positions, normals, mus, sides, w) -> bool:
+    """Return whether w = sum_k L_k f_k with every f_k in its pyramid (LP feasibility)."""
+    K = len(positions)
+    A = np.zeros((K * sides, 3 * K))
+    for k in range(K):
+        A[k * sides:(k + 1) * sides, 3 * k:3 * k + 3] = definition_rows(normals[k], mus[k],
+                                                                        sides)
+    L = np.hstack([np.vstack([np.eye(3), np.cross(p, np.eye(3)).T]) for p in positions])
+    res = linprog(np.zeros(3 * K), A_ub=A, b_ub=np.zeros(len(A)), A_eq=L, b_eq=w,
+                  bounds=[(None, None)] * 3 * K, method='highs')
+    return res.status == 0
+
+
+TILTED = np.array([[0.3, 0.0, 1.0], [0.0, -0.35, 1.0], [0.25, 0.25, 1.0], [-0.2, 0.1, 1.0]])
+MUS = np.array([0.4, 1.0, 0.55, 0.8])
+
+
+@pytest.mark.parametrize('sides', [3, 4, 6, 8])
+@pytest.mark.parametrize('K', [2, 4])
+def test_tilted_per_foot_cwc_membership_matches_lp_on_the_definition(sides, K):
+    positions, normals, mus = FEET[:K], TILTED[:K], MUS[:K]
+    C = contact_wrench_cone(positions, normals, mus, sides)
+    assert C.dimension == (6 if K == 4 else 5)
+    rng = np.random.default_rng(10 * K + sides)
+    # Wrenches near the cone's boundary: sums of lifted forces drawn around the pyramids
+    # (some inside, some outside), moved within the cone's span.
+    outcomes = []
+    for _ in range(60):
+        w = np.zeros(6)
+        for p, n, mu in zip(positions, normals, mus):
+            n = n / np.linalg.norm(n)
+            h = rng.uniform(50.0, 200.0)
+            tangent = rng.normal(size=3)
+            tangent -= (tangent @ n) * n
+            tangent *= rng.uniform(0.0, 1.3) * mu * h / np.linalg.norm(tangent)
+            f = h * n + tangent
+            w += np.concatenate([f, np.cross(p, f)])
+        u = C.hull_basis @ rng.normal(size=C.dimension)
+        w += u / np.linalg.norm(u) * rng.uniform(0.0, 0.4) * np.linalg.norm(w)
+        if np.min(np.abs(C.A @ w)) < 1e-6 * np.linalg.norm(w):
+            continue
+        ours = bool(np.all(C.A @ w <= 0.0))
+        assert ours == lp_in_cwc(positions, normals, mus, sides, w)
+        outcomes.append(ours)
+    assert 5 <= sum(outcomes) <= len(outcomes) - 5
+    # Every row is valid on the definition's cone (no lifted pyramid edge beyond it) and
+    # supports it (an edge on it).
+    R = np.vstack([np.concatenate([r, np.cross(p, r)])
+                   for p, n, mu in zip(positions, normals, mus)
+                   for r in pyramid_rays(n, mu, sides)])
+    R /= np.linalg.norm(R, axis=1)[:, None]
+    top = np.max(R @ C.A.T, axis=0)
+    assert np.all(top <= 1e-9) and np.all(top >= -1e-9)
+
+
+def pyramid_rays(n, mu, sides):
+    """Edges of the pyramid: intersections of adjacent facets of ``definition_rows``."""
+    rows = definition_rows(n, mu, sides)
+    n = np.asarray(n, dtype=float) / np.linalg.norm(n)
+    rays = np.cross(rows, np.roll(rows, -1, axis=0))
+    return rays * np.sign(rays @ n)[:, None]

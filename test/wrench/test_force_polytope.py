@@ -158,3 +158,47 @@ def test_exactly_singular_jacobians_do_not_raise():
     P = force_polytope(J[2], np.ones(3), -np.ones(3), np.ones(3))
     assert P.meta['singular'] and P.dimension == 0      # no Jacobian: only f = 0
     np.testing.assert_allclose(P.vertices, np.zeros((1, 3)))
+
+
+def _support_lp_in_span(J, bias, lo, hi, c):
+    """Return max c.f over {f = J y : lo <= bias - J^T J y <= hi} (the definition, eq. 4)."""
+    n = J.shape[1]
+    JTJ = J.T @ J
+    A = np.vstack([JTJ, -JTJ])
+    b = np.concatenate([bias - lo, hi - bias])
+    res = linprog(-(J.T @ c), A_ub=A, b_ub=b, bounds=[(None, None)] * n, method='highs')
+    assert res.status == 0
+    return -res.fun
+
+
+@pytest.mark.parametrize('n', [1, 2])
+def test_legs_with_fewer_than_three_joints_are_exact_flat_and_not_singular(n):
+    rng = np.random.default_rng(RNG_SEED + n)
+    J = rng.normal(size=(3, n)) * 0.3
+    bias = rng.normal(size=n)
+    lo, hi = -rng.uniform(5, 15, n), rng.uniform(5, 15, n)
+    P = force_polytope(J, bias, lo, hi)
+    assert not P.meta['singular'] and not P.meta['near_singular'] and P.meta['planar']
+    assert P.dimension == n
+    # Within the leg's span: the support function equals the LP on the definition.
+    for _ in range(20):
+        c = rng.normal(size=3)
+        assert np.max(P.vertices @ c) == pytest.approx(_support_lp_in_span(J, bias, lo, hi, c),
+                                                       rel=1e-9, abs=1e-9)
+    # Every vertex is a force in range(J) whose torques are at a corner of the box.
+    tau = bias - P.vertices @ J
+    assert np.all(np.isclose(tau, lo[None], atol=1e-9) | np.isclose(tau, hi[None], atol=1e-9))
+    resid = P.vertices - P.vertices @ J @ np.linalg.pinv(J)
+    assert np.max(np.abs(resid)) < 1e-9
+    # The generators cover the set with zero columns up to 3 (one AWP zonotope).
+    G, cen = P.meta['generators'], P.meta['center']
+    assert G.shape == (3, 3) and np.all(G[:, n:] == 0.0)
+    corners = cen - CUBE_SIGNS @ G.T
+    for c in rng.normal(size=(20, 3)):
+        assert np.max(corners @ c) == pytest.approx(np.max(P.vertices @ c), abs=1e-9)
+
+
+def test_a_two_joint_leg_singular_within_its_rank_is_flagged():
+    J = np.array([[0.2, 0.4], [0.0, 0.0], [0.1, 0.2]])        # parallel columns: rank 1
+    P = force_polytope(J, np.zeros(2), -np.ones(2), np.ones(2))
+    assert P.meta['singular'] and P.dimension == 1

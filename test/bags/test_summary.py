@@ -1,0 +1,61 @@
+"""The replay summary's CoM region margin statistics, on hand-made reports."""
+
+from __future__ import annotations
+
+import json
+import math
+
+from awp_ros_msgs.msg import FeasibilityReport
+import numpy as np
+
+from awp_ros.bags.summary import summarize_reports
+
+S = FeasibilityReport
+
+
+def report(i: int, support: float, fwp: float, feasible: float, *, fresh: bool,
+           status: int = S.STATUS_OK) -> FeasibilityReport:
+    r = FeasibilityReport(status=status)
+    r.header.stamp.sec = i
+    if fresh:
+        r.fws_stamp.sec = i
+    r.support_region_margin, r.fwp_region_margin = support, fwp
+    r.feasible_region_margin = feasible
+    return r
+
+
+def test_region_margins_exclude_nan_count_empty_and_take_fresh_feasible_regions():
+    rng = np.random.default_rng(0)
+    support = rng.uniform(-0.05, 0.3, 40)
+    support[[3, 7]] = math.nan                               # empty regions
+    fwp = support - 0.01
+    feasible = support - 0.02
+    fresh = np.arange(40) % 4 == 0
+    reports = [report(i, support[i], fwp[i], feasible[i], fresh=bool(fresh[i]))
+               for i in range(40)]
+    reports.append(report(99, 5.0, 5.0, 5.0, fresh=True, status=S.STATUS_INVALID_INPUT))
+    s = summarize_reports(reports)
+    assert s.valid == 40 and s.invalid == 1
+    for name, values in (('support_region', support), ('fwp_region', fwp),
+                         ('feasible_region', feasible[fresh])):
+        st = s.region_margins[name]
+        x = values[np.isfinite(values)]
+        assert st['n'] == x.size and st['empty'] == values.size - x.size
+        assert st['min'] == x.min() and st['max'] == x.max()
+        assert st['median'] == np.median(x) and st['mean'] == x.mean()
+        assert st['p5'] == np.percentile(x, 5)
+    assert s.region_margins['support_region']['empty'] == 2
+    assert s.region_margins['feasible_region']['n'] == 10     # rows 0, 4, ..., 36: fresh
+    text = s.to_text()
+    assert 'region [m]' in text and 'feasible_region' in text
+    json.dumps(s.to_dict(), allow_nan=False)
+
+
+def test_regions_all_empty_give_null_statistics():
+    s = summarize_reports([report(i, math.nan, math.nan, math.nan, fresh=True)
+                           for i in range(3)])
+    for st in s.region_margins.values():
+        assert st['n'] == 0 and st['empty'] == 3 and st['median'] is None
+    doc = json.loads(json.dumps(s.to_dict(), allow_nan=False))
+    assert doc['region_margins']['feasible_region']['min'] is None
+    assert 'feasible_region' in s.to_text()
