@@ -9,14 +9,16 @@ Input (a file argument, or stdin when absent or ``-``), one JSON object::
       "joint_positions": {"lf_haa_joint": -0.1, ...},   # [rad]; all joints unless posture
       "joint_velocities": {...},            # optional [rad/s], all joints
       "joint_accelerations": {...},         # optional [rad/s^2], all joints
+      "joint_efforts": {...},               # optional [N.m], all joints: measured forces
       "base_orientation": [0, 0, 0, 1],     # optional quaternion [x, y, z, w]
       "base_twist": [vx, vy, vz, wx, wy, wz],          # optional, base frame [m/s, rad/s]
       "base_acceleration": [ax, ay, az, alx, aly, alz],  # optional, base frame
       "stance": ["lf_foot", "rh_foot"],     # optional, default all feet; [] allowed
       "friction_coefficient": 0.7,          # optional, all feet
       "friction_coefficients": {"lf_foot": 0.5},       # optional, per foot
-      "normals": {"lf_foot": [0, 0, 1]}     # optional, per foot, world frame
-    }
+      "normals": {"lf_foot": [0, 0, 1]},    # optional, per foot, world frame
+      "wrench": [fx, fy, fz, mx, my, mz]    # optional: the margins of this wrench [N, N.m]
+    }                                       # (about the CoM, world axes) instead of w
 
 Output: the :meth:`~awp_ros.evaluation.result.FeasibilityResult.to_dict` document (``mass``,
 ``com``, ``wrench``, ``legs``, ``awp``/``fwp``/``fws`` with ``margin``, ``normal``,
@@ -41,6 +43,7 @@ from __future__ import annotations
 import argparse
 from collections.abc import Mapping
 import json
+from pathlib import Path
 import sys
 
 from awp_ros.errors import AwpError, InputError, ModelError
@@ -52,9 +55,9 @@ __all__ = ['main', 'state_from_json']
 
 PROG = 'awp_eval'
 _STATE_KEYS = ('joint_positions', 'joint_velocities', 'joint_accelerations',
-               'base_orientation', 'base_twist', 'base_acceleration', 'stance', 'normals',
-               'friction_coefficient', 'friction_coefficients')
-_KEYS = ('robot', 'posture') + _STATE_KEYS
+               'joint_efforts', 'base_orientation', 'base_twist', 'base_acceleration',
+               'stance', 'normals', 'friction_coefficient', 'friction_coefficients')
+_KEYS = ('robot', 'posture', 'wrench') + _STATE_KEYS
 
 
 def state_from_json(doc: Mapping, evaluator: FeasibilityEvaluator) -> RobotState:
@@ -114,7 +117,7 @@ def main(argv: list[str] | None = None) -> int:
             raise InputError(f'robot must be a config name or path, got {robot!r}')
         evaluator = FeasibilityEvaluator(robot)
         state = state_from_json(doc, evaluator)
-        result = evaluator.evaluate(state, fws=not args.no_fws)
+        result = evaluator.evaluate(state, fws=not args.no_fws, wrench=doc.get('wrench'))
     except (ValueError, ModelError) as exc:   # InputError, ConfigError, JSON errors
         _error(str(exc))
         return 2
@@ -129,15 +132,9 @@ def main(argv: list[str] | None = None) -> int:
 def _read(path: str) -> dict:
     """Return the JSON object in ``path`` (``-``: stdin); InputError if unreadable."""
     try:
-        if path == '-':
-            text = sys.stdin.read()
-        else:
-            with open(path, encoding='utf-8') as stream:
-                text = stream.read()
+        doc = json.loads(sys.stdin.read() if path == '-' else Path(path).read_text('utf-8'))
     except OSError as exc:
         raise InputError(f'cannot read state file {path!r}: {exc.strerror}') from exc
-    try:
-        doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise InputError(f'state is not valid JSON: {exc}') from exc
     if not isinstance(doc, dict):

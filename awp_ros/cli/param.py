@@ -12,9 +12,11 @@
 
 What ``ros2 param list|get|set|dump`` do, through the same ``rcl_interfaces`` services of
 the node (``<node>/list_parameters``, ``get_parameters``, ``set_parameters``), for pip users
-whose venv has no ``ros2`` command. Values are YAML (``true``, ``0.5``, ``[0, 0, 1]``,
-``text``); an integer given for a parameter whose value is a double (or an integer list for
-a double list) is sent as that double, as the node would take it from a parameters file.
+whose venv has no ``ros2`` command. Values are YAML (``true``, ``0.5``, ``[0, 0, 1]``);
+an integer given for a parameter whose value is a double (or an integer list for a double
+list) is sent as that double, as the node would take it from a parameters file, and a
+string parameter takes the text as typed (``awp_param set /awp_node robot_description
+"$(cat robot.urdf)"``).
 Several ``NAME VALUE`` pairs of one ``set`` are set one by one, in order. The DDS domain and
 discovery range are those of the environment (``ROS_DOMAIN_ID``,
 ``ROS_AUTOMATIC_DISCOVERY_RANGE``).
@@ -36,7 +38,7 @@ from rclpy.parameter import Parameter, parameter_value_to_python
 import yaml
 
 from awp_ros.errors import ConfigError, ProcessError
-from awp_ros.robot.config import close_matches
+from awp_ros.robot.parameters import close_matches
 
 __all__ = ['main']
 
@@ -109,7 +111,7 @@ def _run(node, args) -> int:
     pairs = list(zip(args.pairs[::2], args.pairs[1::2]))
     current = client.values([name for name, _ in pairs])
     for name, text in pairs:
-        value = _coerce(_yaml(text), current[name])
+        value = _coerce(_yaml(text), current[name], text)
         client.set_value(name, value)
         print(f'set {name} = {value!r}')
     return 0
@@ -123,8 +125,15 @@ def _yaml(text: str):
         return text
 
 
-def _coerce(value, current):
-    """Return ``value`` as a double (list) when the parameter holds a double (list)."""
+def _coerce(value, current, text: str):
+    """
+    Return ``value`` in the parameter's current type where that is what the user meant.
+
+    A double (list) parameter given an integer (list) gets the double (list); a string
+    parameter gets the text as typed (``robot_description "$(cat robot.urdf)"``).
+    """
+    if isinstance(current, str):
+        return text
     if isinstance(current, float) and isinstance(value, int) and not isinstance(value, bool):
         return float(value)
     if isinstance(current, list) and current and all(isinstance(x, float) for x in current) \

@@ -156,7 +156,7 @@ def _offline(robot: str, stance: list[str] | None, params: dict) -> MarkerArray:
     from sensor_msgs.msg import JointState
 
     from awp_ros.ros.pipeline import Pipeline
-    from awp_ros.ros.pipeline_params import PipelineParams
+    from awp_ros.robot.parameters import PipelineParams
     pipe = Pipeline(robot, PipelineParams(**params))
     ev = pipe.evaluator
     feet = list(ev.feet)

@@ -71,9 +71,11 @@ class LegResult:
 
 
 @dataclass
-class WrenchSetResult:
+class WrenchSetResult(SetMargin):
     """
     A 6D wrench set (AWP, FWP or FWS) and the margin of the evaluated wrench.
+
+    The margin fields are those of :class:`~awp_ros.geometry.margin.SetMargin`:
 
     ``margin`` [N, N.m]: signed margin, positive only when ``w`` is in the set (the distance
     to its boundary), negative whenever it is not (minus the distance from ``w`` to the set,
@@ -93,12 +95,6 @@ class WrenchSetResult:
 
     name: str
     polytope: Polytope
-    margin: float
-    normal: np.ndarray
-    dimension: int
-    affine_residual: float
-    feasible: bool
-    margin_in_hull: float
     directional: dict[str, tuple[float, float]] | None = None
     region: ComRegion | None = None
     capture_point_margin: float = math.nan
@@ -106,9 +102,10 @@ class WrenchSetResult:
     @classmethod
     def from_margin(cls, name: str, polytope: Polytope, m: SetMargin) -> WrenchSetResult:
         """Wrap a polytope and its :class:`~awp_ros.geometry.margin.SetMargin`."""
-        return cls(name, polytope, float(m.margin), np.asarray(m.normal, dtype=float),
-                   int(m.dimension), float(m.affine_residual), bool(m.feasible),
-                   float(m.margin_in_hull))
+        return cls(margin=float(m.margin), normal=np.asarray(m.normal, dtype=float),
+                   dimension=int(m.dimension), affine_residual=float(m.affine_residual),
+                   feasible=bool(m.feasible), margin_in_hull=float(m.margin_in_hull),
+                   name=name, polytope=polytope)
 
     def to_dict(self, *, halfspaces: bool = True) -> dict:
         """

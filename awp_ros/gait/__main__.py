@@ -14,7 +14,8 @@ import sys
 from awp_ros.bags.writer import remove_path
 from awp_ros.errors import AwpError
 from awp_ros.gait.bag import DEFAULT_BAG_NAME, DEFAULT_IMU_RATE_HZ, write_gait_bag
-from awp_ros.gait.generator import GaitParams, GAITS, generate_gait
+from awp_ros.gait.generator import generate_gait
+from awp_ros.gait.params import GaitParams, GAITS
 from awp_ros.robot.config import load_config
 
 

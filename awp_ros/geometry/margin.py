@@ -48,7 +48,7 @@ from awp_ros.geometry.polytope import Polytope
 __all__ = ['SetMargin', 'directional_margins', 'polytope_margin']
 
 
-@dataclass(frozen=True)
+@dataclass
 class SetMargin:
     """
     Signed margin of a point w.r.t. a polytope (see the module docstring).

@@ -87,6 +87,8 @@ class _Input:
         self.qos_policy = ''                 # the last incompatible policy
         self.incompatible_type = 0           # incompatible-type events (total)
         self.streams: list[int] = []         # last sequence number of each publisher
+        self.stream_used: list[int] = []     # when each sequence was last continued (tick)
+        self.ticks = 0
         self.total = 0
         self.period = 0
         self.last_wall: float | None = None
@@ -158,39 +160,45 @@ class NodeDiagnostics:
 
         Several publishers on one topic (legs and arm) each number their own messages, and
         the message info does not say which publisher sent one, so one sequence is kept per
-        matched publisher (:meth:`matched`): a number that follows one of them continues
-        it; while fewer sequences than publishers are known, any other number starts a new
-        one (no gap counted); else it continues the sequence with the largest number below
-        it (the smallest possible gap), and a number below all of them is a restarted
-        publisher (its sequence starts over). With one publisher this is the plain count,
-        and a smaller number than the last one starts over.
+        publisher: a number that follows one of them continues it; while fewer sequences
+        than matched publishers (:meth:`matched`) are known, any other number starts a new
+        one (no gap counted); a number not above any of them starts a new one too (a new
+        publisher, whose matched event may not have been handled yet, or a restarted one;
+        the sequence used least recently goes when there are more than one beyond the
+        matched publishers); else it continues the sequence with the largest number below
+        it: the smallest possible gap, so that interleaved publishers never show a false
+        one. With one publisher this is the plain count, and a smaller number than the last
+        one starts over.
 
         :param seq: ``publication_sequence_number`` of the message info (None: unknown; the
             next known number then starts over, as a gap across it cannot be told from
             the unknown message).
         """
         c = self.inputs[topic]
-        streams = c.streams
+        streams, used = c.streams, c.stream_used       # last number, last use (a tick)
+        c.ticks += 1
         if seq is None:
             streams.clear()
+            used.clear()
             return 0
         for i, last in enumerate(streams):
             if seq == last + 1:
                 streams[i] = seq
+                used[i] = c.ticks
                 return 0
         n = max(c.publishers, 1)
-        while len(streams) > n:                   # publishers left: drop the stalest
-            streams.remove(min(streams))
-        if len(streams) < n:
+        below = [i for i, last in enumerate(streams) if last < seq]
+        if len(streams) < n or not below:
             streams.append(seq)
+            used.append(c.ticks)
+            while len(streams) > n + 1:             # publishers gone: the least recent go
+                i = used.index(min(used))
+                del streams[i], used[i]
             return 0
-        below = [last for last in streams if last < seq]
-        if not below:                             # a publisher that restarted
-            streams[streams.index(min(streams))] = seq
-            return 0
-        last = max(below)
-        streams[streams.index(last)] = seq
-        missing = seq - last - 1
+        i = max(below, key=streams.__getitem__)
+        missing = seq - streams[i] - 1
+        streams[i] = seq
+        used[i] = c.ticks
         c.gaps += missing
         c.gaps_period += missing
         return missing
@@ -379,24 +387,19 @@ class NodeDiagnostics:
         warned = int(period[_WARNING])
         n = int(period.sum())
         period_ms = 1e3 / input_rate if input_rate > 0.0 else float('inf')
-        texts = []
-        if self.model_error:
-            texts.append(self.model_error[:_REASON_CHARS])
-        if bad:
-            texts.append(f'{bad} of {n} reports not evaluated; last: '
-                         f'{self.last_reason[:_REASON_CHARS]}')
-        if self.config_errors:
-            texts.append(f'{len(self.config_errors)} parameters rejected at startup, '
-                         f'defaults used: {self.config_errors[0][:_REASON_CHARS]}')
-        if warned:
-            texts.append(f'{warned} of {n} reports with warnings; last: '
-                         f'{self.last_warning[:_REASON_CHARS]}')
-        if self.output_errors_period:
-            texts.append(f'{self.output_errors_period} outputs not built; last: '
-                         f'{self.last_output_error[:_REASON_CHARS]}')
-        if c50 > period_ms:
-            texts.append(f'falling behind: compute time p50 {c50:.2f} ms > joint_states '
-                         f'period {period_ms:.2f} ms')
+        cut = _REASON_CHARS
+        candidates = [   # (condition, message), in order
+            (self.model_error, self.model_error[:cut]),
+            (bad, f'{bad} of {n} reports not evaluated; last: {self.last_reason[:cut]}'),
+            (self.config_errors, f'{len(self.config_errors)} parameters rejected at startup, '
+                                 f'defaults used: {(self.config_errors or [""])[0][:cut]}'),
+            (warned, f'{warned} of {n} reports with warnings; last: {self.last_warning[:cut]}'),
+            (self.output_errors_period, f'{self.output_errors_period} outputs not built; '
+                                        f'last: {self.last_output_error[:cut]}'),
+            (c50 > period_ms, f'falling behind: compute time p50 {c50:.2f} ms > joint_states '
+                              f'period {period_ms:.2f} ms'),
+        ]
+        texts = [text for condition, text in candidates if condition]
         if self.model_error or period[_ERROR] or self.output_errors_period:
             level = DiagnosticStatus.ERROR
         elif texts:

@@ -76,10 +76,10 @@ from awp_ros.geometry.linalg import quaternion_matrix
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.node.marker_worker import _LENGTH, _read, _write
 from awp_ros.robot.config import RobotConfig
+from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.conversions import (report_msg, robot_state_from_msgs, stamp_to_ns,
                                      wrench_polytope_msg)
 from awp_ros.ros.pipeline import MAX_REASON_CHARS, unevaluated_report
-from awp_ros.ros.pipeline_params import PipelineParams
 from awp_ros.runtime import tune_process
 
 __all__ = ['EvaluateService', 'MAX_RESTARTS', 'NICE', 'evaluate_request', 'main']
@@ -432,8 +432,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--namespace', default='/')
     args = parser.parse_args(argv)
     signal.signal(signal.SIGINT, signal.SIG_IGN)       # Ctrl-C is the node's; it closes us
-    try:        # before rclpy starts its threads: they inherit the policy
-        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+    try:        # every thread so far (BLAS); rclpy's, started later, inherit the policy
+        for task in os.listdir('/proc/self/task'):
+            os.sched_setscheduler(int(task), os.SCHED_IDLE, os.sched_param(0))
     except (AttributeError, OSError):
         try:
             os.nice(NICE)

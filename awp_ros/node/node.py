@@ -7,9 +7,13 @@ too, so both produce the same messages)::
     awp_node --ros-args --params-file config/hyq.yaml
     ros2 run awp_ros awp_node --ros-args --params-file config/hyq.yaml -r joint_states:=/js
 
-Subscriptions (relative names, remappable): ``joint_states`` (sensor_msgs/JointState),
-``contacts`` (awp_ros_msgs/ContactState), ``imu`` (sensor_msgs/Imu, when ``use_imu``).
-QoS: reliable (or best effort, ``qos_reliability``), keep last ``qos_depth``.
+Subscriptions (relative names, remappable): ``joint_states`` (sensor_msgs/JointState, from
+any number of publishers, each with any subset of the joints), ``contacts``
+(awp_ros_msgs/ContactState, when ``contact_source`` is ``topic``), ``imu`` (sensor_msgs/Imu,
+when ``use_imu``), ``odom`` (nav_msgs/Odometry, when ``use_odometry``). QoS: reliable (or
+best effort, ``qos_reliability``), keep last ``qos_depth``; contacts volatile or
+transient-local (``contacts_durability``). Their incompatible-QoS, incompatible-type and
+matched events, and the types of their publishers in the ROS graph, feed ``/diagnostics``.
 
 Publications: ``~/report`` (FeasibilityReport, one per joint state), ``~/awp``, ``~/fwp``
 (WrenchPolytope, each evaluated cycle), ``~/fws`` (at ``fws_rate_hz``), ``~/leg_polytopes``
@@ -81,9 +85,9 @@ from awp_ros.node.evaluate_service import EvaluateService
 from awp_ros.node.input_drain import InputDrain
 from awp_ros.node.marker_worker import MarkerWorker
 from awp_ros.node.parameters import NodeParameters
+from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.conversions import stamp_to_ns
 from awp_ros.ros.pipeline import loss_note, Pipeline, unevaluated_report
-from awp_ros.ros.pipeline_params import PipelineParams
 from awp_ros.runtime import freeze_startup_objects, keep_freed_memory, limit_blas_threads
 
 __all__ = ['AwpNode', 'main']
@@ -128,6 +132,7 @@ class AwpNode(Node):
                                            topics, stale_timeout_s=p.stale_timeout_s)
         self.diagnostics.topic_timeouts['contacts'] = p.contacts_timeout_s
         self._extra_logged: frozenset = frozenset()
+        self._last_contacts: ContactState | None = None     # received while no model
         self.diagnostics.model_error = self.model_error
         self.diagnostics.config_errors = self.parameters.config_errors
         self._wall = Clock(clock_type=ClockType.SYSTEM_TIME)
@@ -152,6 +157,9 @@ class AwpNode(Node):
         if evaluator is not None and self.pipeline is None:
             self.pipeline = Pipeline(evaluator, params,
                                      input_buffer=self.parameters.value('qos_depth'))
+            if self._last_contacts is not None:
+                self.pipeline.on_contacts(self._last_contacts)
+                self._last_contacts = None
             self.model_error = self.diagnostics.model_error = ''
             self.diagnostics.hardware_id = self.pipeline.config.robot_name
             self.get_logger().info(f'robot model {self.pipeline.config.robot_name!r} '
@@ -278,6 +286,8 @@ class AwpNode(Node):
         self.diagnostics.sequence('contacts', info.get('publication_sequence_number'))
         if self.pipeline is not None:
             self.pipeline.on_contacts(msg)
+        else:                   # kept for a model built at runtime (contacts sent on change)
+            self._last_contacts = msg
 
     def _on_imu(self, msg: Imu, info: dict) -> None:
         self.diagnostics.received('imu', time.monotonic())

@@ -3,13 +3,16 @@ The parameters of ``awp_node``: declaration with descriptors, validation, applic
 
 :class:`NodeParameters` is a part of :class:`awp_ros.node.node.AwpNode`, as rclpy's parameter
 examples do it: it declares the node parameters (:data:`NODE_PARAMETER_DOCS`), the pipeline
-parameters (:data:`awp_ros.ros.pipeline_params.PARAMETER_DOCS`) and the robot config keys
-(:data:`ROBOT_PARAMETER_DOCS`, :data:`ROBOT_PREFIXES`), replacing a bad startup value by its
+parameters (:data:`awp_ros.robot.parameters.PARAMETER_DOCS`) and the robot config keys
+(:data:`ROBOT_PARAMETER_DOCS`, :data:`ROBOT_PREFIXES`) with the defaults of the one parameter
+schema (:func:`awp_ros.robot.parameters.parameter_schema`; a minimal config of ``urdf`` and
+``feet`` leaves no parameter unset), refusing keys the schema does not know (the model error
+names them and their close matches), replacing a bad startup value by its
 default (logged and listed in :attr:`NodeParameters.config_errors`); a change at runtime is
 validated in the on-set callback (the robot model is rebuilt there, a few ms, and the result
 kept) and applied in the post-set callback, which hands the new
 :class:`~awp_ros.robot.config.RobotConfig` model and
-:class:`~awp_ros.ros.pipeline_params.PipelineParams` to the node's ``apply`` function.
+:class:`~awp_ros.robot.parameters.PipelineParams` to the node's ``apply`` function.
 """
 
 from __future__ import annotations
@@ -26,9 +29,10 @@ from rclpy.parameter import Parameter
 
 from awp_ros.errors import AwpError, ConfigError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
-from awp_ros.robot.config import check_keys, DEFAULT_ROBOT, load_config, ROBOT_KEYS, RobotConfig
+from awp_ros.robot.config import check_keys, DEFAULT_ROBOT, load_config, RobotConfig
+from awp_ros.robot.parameters import (NODE_KEYS, PARAMETER_DOCS, PIPELINE_KEYS, PipelineParams,
+                                      ROBOT_KEYS)
 from awp_ros.ros.pipeline import check_marker_frame
-from awp_ros.ros.pipeline_params import NODE_KEYS, PARAMETER_DOCS, PIPELINE_KEYS, PipelineParams
 
 __all__ = ['limit_value', 'NODE_PARAMETER_DOCS', 'NodeParameters',
            'ROBOT_PARAMETER_DOCS', 'ROBOT_PREFIXES']
@@ -39,7 +43,7 @@ _TYPES = {'string': _T.STRING, 'double': _T.DOUBLE, 'integer': _T.INTEGER, 'bool
           'string_array': _T.STRING_ARRAY, 'double_array': _T.DOUBLE_ARRAY, 'limit': None}
 
 #: Robot config keys (parameters shared with the core's YAML), their type and meaning; the
-#: defaults are those of :data:`awp_ros.robot.config.ROBOT_KEYS`.
+#: defaults are those of :data:`awp_ros.robot.parameters.ROBOT_KEYS`.
 ROBOT_PARAMETER_DOCS = {name: (_TYPES[k.kind], k.doc) for name, k in ROBOT_KEYS.items()
                         if not k.item}
 #: Prefixed robot keys: one parameter per foot or joint.
@@ -47,7 +51,7 @@ ROBOT_PREFIXES = {name: (_TYPES[k.kind], f'{k.item} {{}}: {k.doc}')
                   for name, k in ROBOT_KEYS.items() if k.item}
 
 #: Node-only parameters: (type, default, description, read_only), from
-#: :data:`awp_ros.ros.pipeline_params.NODE_KEYS`.
+#: :data:`awp_ros.robot.parameters.NODE_KEYS`.
 NODE_PARAMETER_DOCS = {name: (_TYPES[k.kind], k.default, k.doc, k.read_only)
                        for name, k in NODE_KEYS.items()}
 _FIELDS = {f.name: f for f in fields(PipelineParams)}
@@ -60,11 +64,14 @@ class NodeParameters:
     :param node: the rclpy node the parameters belong to.
     :param apply: called after an accepted change with ``(evaluator, params)``: the new
         :class:`~awp_ros.evaluation.evaluator.FeasibilityEvaluator` (None when no robot key
-        changed) and the new :class:`~awp_ros.ros.pipeline_params.PipelineParams`.
+        changed) and the new :class:`~awp_ros.robot.parameters.PipelineParams`.
     :param root_link: returns the root link of the robot model in use, None without a
         model (a change of a robot key then builds one).
-    :ivar config_errors: startup problems (bad values replaced by defaults, unknown keys).
+    :ivar config_errors: startup problems (bad values replaced by defaults).
     :ivar base: the robot config the robot keys' defaults come from (``robot``), or None.
+    :ivar base_error: why there is no robot model at startup ('' = none): the base config
+        cannot be loaded, or a parameter no part of the node knows was given (a typo; the
+        message names its close matches).
     """
 
     def __init__(self, node: Node, apply: Callable,

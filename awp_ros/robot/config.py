@@ -35,7 +35,6 @@ from __future__ import annotations
 import array
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
-import difflib
 import math
 import numbers
 import os
@@ -47,93 +46,15 @@ import xml.etree.ElementTree as ElementTree
 import yaml
 
 from awp_ros.errors import ConfigError
+from awp_ros.robot.parameters import (close_matches, parameter_schema, ROBOT_KEYS, ROS_KEYS,
+                                      ros_parameters)
 
-__all__ = ['DEFAULT_ROBOT', 'ConfigKey', 'ROBOT_KEYS', 'ROS_KEYS', 'RobotConfig',
-           'available_configs', 'check_keys', 'close_matches', 'config_dirs',
+__all__ = ['DEFAULT_ROBOT', 'RobotConfig', 'available_configs', 'check_keys', 'config_dirs',
            'find_config_file', 'find_parameters_file', 'load_config', 'load_parameters',
-           'parameter_schema', 'read_parameters', 'ros_parameters', 'srdf_standing_posture',
-           'urdf_robot_name']
+           'read_parameters', 'srdf_standing_posture', 'urdf_robot_name']
 
 DEFAULT_ROBOT = 'hyq'
 _ENV_CONFIG_DIR = 'AWP_ROS_CONFIG_DIR'
-
-
-@dataclass(frozen=True)
-class ConfigKey:
-    """
-    One key of the parameters schema: its kind, default and meaning.
-
-    ``kind`` is ``'string'``, ``'double'``, ``'integer'``, ``'bool'``, ``'string_array'``,
-    ``'double_array'`` or ``'limit'`` (a double ``L`` or a pair ``[min, max]``). A key with
-    an ``item`` is prefixed: one parameter ``<name>.<item>`` per foot or joint (nested in
-    YAML). ``default`` is None for a required key and for one whose default is derived
-    (``doc`` says from what). ``group``: ``'robot'`` (the core's keys), ``'pipeline'`` or
-    ``'node'`` (``awp_node`` and the replay only).
-    """
-
-    kind: str
-    default: object
-    doc: str
-    required: bool = False
-    item: str = ''
-    group: str = 'robot'
-    read_only: bool = False
-
-
-#: The robot keys: what the core reads (RobotConfig), with defaults; ``urdf`` and ``feet``
-#: are the only required keys.
-ROBOT_KEYS: dict[str, ConfigKey] = {
-    'robot_name': ConfigKey(
-        'string', '', "robot name (reports, diagnostics hardware_id); '' = the URDF's file "
-        'name without extension (a1.urdf: a1), or the name attribute of URDF XML'),
-    'urdf': ConfigKey(
-        'string', None, 'URDF: example-robot-data://<path under robots/>, file://<path>, a '
-        'path (relative to the YAML file) or the XML itself', required=True),
-    'feet': ConfigKey(
-        'string_array', None, 'contact frames (URDF links or frames), in the order of every '
-        'per-leg output', required=True),
-    'leg_joints': ConfigKey(
-        'string_array', None, 'joints driving the foot, base to foot; default: the 1-DoF '
-        'joints on the kinematic chain from the base to the foot', item='foot'),
-    'torque_limits': ConfigKey(
-        'limit', None, 'torque limit of a leg joint: L (the range [-L, L]) or [min, max] '
-        '[N.m] ([N] prismatic); default: the URDF effort limit; a joint that drives no leg is '
-        'an error', item='joint'),
-    'friction_coefficient': ConfigKey(
-        'double', 0.7, 'default friction coefficient mu > 0 of every foot [-]'),
-    'contact_normal': ConfigKey(
-        'double_array', [0.0, 0.0, 1.0], 'default contact normal, world axes (normalised on '
-        'load)'),
-    'pyramid_sides': ConfigKey('integer', 4, 'sides N >= 3 of the friction pyramids'),
-    'standing_posture': ConfigKey(
-        'double', None, 'standing posture of a joint [rad]: all joints of the model or none; '
-        "used by awp_eval's \"posture\": \"standing\" and the gait generator; default: none "
-        "(awp_demo then takes the 'standing' state of the SRDF beside the URDF)",
-        item='joint'),
-}
-
-#: Parameters every rclpy node has (declared by rclpy; accepted in a parameters file).
-ROS_KEYS = ('use_sim_time', 'start_type_description_service', 'qos_overrides')
-
-
-def parameter_schema() -> dict[str, ConfigKey]:
-    """
-    Return every key of a parameters file: the robot keys, the pipeline's and the node's.
-
-    The pipeline's and the node's keys come from :mod:`awp_ros.ros.pipeline_params` (a
-    ROS-free module, imported here on first use), so that the core loader tells a node key
-    in a shared file from a typo.
-    """
-    from awp_ros.ros.pipeline_params import NODE_KEYS, PIPELINE_KEYS
-    return {**ROBOT_KEYS, **PIPELINE_KEYS, **NODE_KEYS}
-
-
-def close_matches(name: str, names: Collection[str]) -> str:
-    """Return `` (did you mean 'a' or 'b'?)`` for the names close to ``name``, or ''."""
-    found = difflib.get_close_matches(name, list(names), n=3, cutoff=0.6)
-    if not found:
-        return ''
-    return f" (did you mean {' or '.join(repr(m) for m in found)}?)"
 
 
 def check_keys(params: Mapping, *, where: str = '', extra: Collection[str] = ()) -> None:
@@ -492,23 +413,6 @@ def srdf_standing_posture(urdf_path: str | os.PathLike, joint_names: Collection[
 
 
 # -- helpers -------------------------------------------------------------------------------
-
-
-def ros_parameters(params: Mapping) -> dict:
-    """
-    Merge the ``ros__parameters`` sections of a parameters file's mapping.
-
-    A mapping without such a section (the section itself, or rclpy's flat parameters) is
-    returned as a copy.
-    """
-    sections = [v['ros__parameters'] for v in params.values()
-                if isinstance(v, Mapping) and isinstance(v.get('ros__parameters'), Mapping)]
-    if isinstance(params.get('ros__parameters'), Mapping):
-        sections.append(params['ros__parameters'])
-    merged: dict = {}
-    for section in sections or [params]:
-        merged.update(section)
-    return merged
 
 
 def _nest(params: Mapping) -> dict:

@@ -13,12 +13,18 @@ the wall clock:
   joint state's (else the earliest received, the closest). So a node that lags and has
   already taken newer contacts or imu messages from its queues pairs them as the replay of
   the recorded order does. A report for every message, errors included
-  (``STATUS_INVALID_INPUT`` with the reason, ``STATUS_STALE_INPUT`` when the contacts/imu
-  stamp is more than ``stale_timeout_s`` older (or newer: clocks that disagree) than the
-  joint state's or none arrived yet, ``STATUS_ERROR`` for an internal failure; reasons are
-  cut to ``MAX_REASON_CHARS``). Joints the model does not have are ignored with a warning
-  (an arm's joints in the robot's joint_states); no foot in contact is evaluated (every
-  set is {0}) with a warning;
+  (``STATUS_INVALID_INPUT`` with the reason, ``STATUS_STALE_INPUT`` when the imu/odom
+  stamp is more than ``stale_timeout_s`` older (or any input's newer: clocks that
+  disagree) than the joint state's, the contacts more than ``contacts_timeout_s`` older
+  (when > 0: by default a contacts message holds until the next one), or none arrived
+  yet, ``STATUS_ERROR`` for an internal failure; reasons are cut to ``MAX_REASON_CHARS``).
+  The stance comes from ``contact_source``: the contacts (``topic``), the joint efforts
+  (``effort``: :mod:`awp_ros.ros.contact_source`) or every foot (``all``). Joint-state
+  messages may carry subsets of the joints (several publishers): they are merged, each
+  joint's latest value (:mod:`awp_ros.ros.joint_merge`), and evaluated once every joint
+  has a value younger than ``joint_states_timeout_s``; joints the model does not have
+  (an arm's, wheels) are ignored without a warning (:attr:`Pipeline.extra_joints` lists
+  them); no foot in contact is evaluated (every set is {0}) with a warning;
 - ``awp``, ``fwp``, ``leg_polytopes`` every evaluated cycle; the FWS (H-rep, directional
   and Euclidean margins) when ``fws_rate_hz`` says so by stamp (0 = every cycle) or the
   stance set changed (which restarts the schedule: the next one comes a period later), the
@@ -29,8 +35,10 @@ the wall clock:
   wrench frame, or the URDF root link, e.g. ``base_link``, to overlay them on the robot).
 
 A stamp earlier than the previous joint state's restarts the throttles (a replay loop) and
-adds a warning to that report. Output messages other than the report are built on demand
-(:class:`Cycle` methods), so a node with no subscriber on a topic does not pay for it.
+adds a warning to that report (for a message with a subset of the joints, only a step back
+larger than ``joint_states_timeout_s``: two publishers' messages interleave out of order).
+Output messages other than the report are built on demand (:class:`Cycle` methods), so a
+node with no subscriber on a topic does not pay for it.
 """
 
 from __future__ import annotations
@@ -54,7 +62,8 @@ from awp_ros.estimation.motion import MotionEstimator
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.evaluation.result import WrenchSetResult
 from awp_ros.geometry.linalg import quaternion_matrix
-from awp_ros.robot.config import check_keys, load_config, RobotConfig, ros_parameters
+from awp_ros.robot.config import check_keys, load_config, RobotConfig
+from awp_ros.robot.parameters import PipelineParams, ros_parameters
 from awp_ros.robot.state import RobotState
 from awp_ros.ros.contact_source import EffortContacts
 from awp_ros.ros.conversions import error_report, report_msg, robot_state_from_msgs, stamp_to_ns
@@ -62,7 +71,6 @@ from awp_ros.ros.cycle import Cycle
 from awp_ros.ros.input_buffer import InputBuffer, stale_reason
 from awp_ros.ros.joint_merge import JointMerger
 from awp_ros.ros.markers import MarkerStyle
-from awp_ros.ros.pipeline_params import PipelineParams
 
 __all__ = ['MAX_REASON_CHARS', 'Pipeline', 'check_marker_frame', 'loss_note',
            'unevaluated_report']

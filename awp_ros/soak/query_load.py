@@ -7,10 +7,12 @@ Measure how ``~/evaluate`` queries delay ``awp_node``'s live reports.
 
 Starts ``awp_node`` (namespace ``--namespace``, default ``/query_load``) and the soak's
 driver (:mod:`awp_ros.soak.driver`: gait joint states at ``--rate``, each stamped with the
-wall clock when published, and contacts), subscribes to the node's reports, and from
-``--quiet`` seconds after the drive starts calls ``~/evaluate`` every ``--period`` seconds
-with ``--states`` random postures around standing (joint offsets uniform in +-0.1 rad, a
-random stance of 2 to 4 feet each, one ContactState per joint state), one call at a time.
+wall clock when published, and contacts) and subscribes to the node's reports; a caller
+process (:func:`caller_main`; apart, so that building requests and reading answers does not
+hold up this process's report callback) calls ``~/evaluate`` from ``--quiet`` seconds after
+the drive starts, every ``--period`` seconds, with ``--states`` random postures around
+standing (joint offsets uniform in +-0.1 rad, a random stance of 2 to 4 feet each, one
+ContactState per joint state), one call at a time.
 
 The latency of a report is its reception time here minus its joint state's stamp [ms]
 (transport both ways included). A report is *during a query* when its joint state was
@@ -21,6 +23,10 @@ queries' durations, and as the last line one JSON object. Run it on an otherwise
 machine: the worker answering the queries, the node, the driver and this process share the
 cores.
 
+``--idle-caller`` runs the caller at ``SCHED_IDLE`` (what the queries cost the stream through
+the node, without the caller's own work); ``--control S`` is the control experiment: in place of
+each call the caller evaluates for ``S`` seconds at ``SCHED_IDLE`` (no call, no DDS), which shows
+what the same kind of CPU work costs the stream when the node has nothing to do with it.
 ``--variant thread`` runs, for comparison, a node that answers ``~/evaluate`` the other way:
 from a thread of the node process (a second executor, its own evaluator), not the worker
 process (:func:`thread_variant_main`).
@@ -44,9 +50,10 @@ from awp_ros.soak.driver import driver_command
 from awp_ros.soak.probe import Probe, wait_until
 from awp_ros.soak.result import percentiles
 
-__all__ = ['main', 'query_request', 'run_query_load', 'thread_variant_main']
+__all__ = ['caller_main', 'main', 'query_request', 'run_query_load', 'thread_variant_main']
 
 _THREAD_VARIANT = '--thread-variant-node'
+_CALLER = '--caller'
 
 
 def query_request(config, states: int, rng: np.random.Generator, *, spread: float = 0.1):
@@ -80,7 +87,8 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
                    period_s: float = 4.0, quiet_s: float = 6.0, robot: str = 'hyq',
                    namespace: str = '/query_load', env: dict[str, str] | None = None,
                    seed: int = 0, queries: bool = True,
-                   command: list[str] | None = None) -> dict:
+                   command: list[str] | None = None, idle_caller: bool = False,
+                   control_s: float = 0.0) -> dict:
     """
     Run one measurement (module docstring) and return its figures.
 
@@ -92,15 +100,20 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
     :param queries: False = the baseline run alone (no query).
     :param command: the node's command (default the ``awp_node`` console script), e.g. a
         variant serving the queries another way, to compare.
+    :param idle_caller: run the caller at the lowest CPU priority (``SCHED_IDLE``): what the
+        queries cost the stream through the node alone, not through the caller's own work
+        (building requests, reading 100 reports).
+    :param control_s: > 0: the control experiment: instead of each call, the caller runs
+        ``evaluate`` (FWS included) for this long [s] at ``SCHED_IDLE``, no call and no DDS:
+        what the same kind of work costs the stream when the node has nothing to do with it.
     :return: ``latency_baseline_ms``, ``latency_during_queries_ms`` (p50, p99, max),
         ``delay_attributable_ms`` (during minus baseline at p50, p99 and max; clipped at 0),
+        ``paired_difference_ms`` (per call: p50 and max of the latencies during it minus
+        those of the equally long stretch before it, which is robust to slow drifts),
         ``queries`` (calls answered), ``query_s`` (their durations), ``reports``, ``sent``,
         ``missing``, ``query_statuses`` (status counts of the queries' reports).
     """
     from awp_ros_msgs.msg import FeasibilityReport
-    from awp_ros_msgs.srv import Evaluate
-
-    from awp_ros.robot.config import load_config
 
     env = ros_env() if env is None else env
     domain = int(env.get('ROS_DOMAIN_ID', '0') or 0)
@@ -121,49 +134,45 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
         count[0] = i + 1
 
     probe.subscribe(FeasibilityReport, f'{ns}/awp_node/report', on_report, depth=n_max)
-    client = probe.node.create_client(Evaluate, f'{ns}/awp_node/evaluate')
-    rng = np.random.default_rng(seed)
-    config = load_config(robot)
-    windows: list[tuple[int, int]] = []
-    statuses: dict[int, int] = {}
     stamps_file = tempfile.NamedTemporaryFile(prefix='awp_qload_', suffix='.npy', delete=False)
     stamps_file.close()
+    calls = {'windows': [], 'statuses': {}}
     try:
         wait_until(lambda: probe.node.count_publishers(f'{ns}/awp_node/report') > 0, 60.0,
                    'awp_node to appear')
-        if not client.wait_for_service(timeout_sec=60.0):
-            raise ProcessError(f'{ns}/awp_node/evaluate did not appear')
+        wait_until(lambda: probe.node.count_services(f'{ns}/awp_node/evaluate') > 0, 60.0,
+                   f'{ns}/awp_node/evaluate to appear')
         time.sleep(0.5)
         cmd = driver_command(rate_hz, duration_s, robot=robot, namespace=ns,
                              stamps_out=stamps_file.name, depth=n_max)
         driver = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True)
         wait_until(lambda: count[0] > 0, 60.0, 'the first report')
-        start = time.monotonic()
-        next_call = start + quiet_s
-        while queries and driver.poll() is None:
-            now = time.monotonic()
-            if now < next_call:
-                time.sleep(min(0.05, next_call - now))
-                continue
-            if now - start + 2.0 > duration_s:       # leave the drive's end quiet
-                break
-            request = query_request(config, states, rng)
-            t0 = time.time_ns()
-            future = client.call_async(request)
-            wait_until(future.done, 120.0, 'an ~/evaluate response', poll_s=0.001)
-            windows.append((t0, time.time_ns()))
-            for report in future.result().reports:
-                statuses[report.status] = statuses.get(report.status, 0) + 1
-            next_call += max(period_s, (windows[-1][1] - t0) * 1e-9)
+        caller = None
+        if queries:     # a process of its own: its work is not this process's (GIL)
+            caller = subprocess.Popen(
+                [sys.executable, '-m', 'awp_ros.soak.query_load', _CALLER, json.dumps(
+                    {'service': f'{ns}/awp_node/evaluate', 'robot': robot, 'states': states,
+                     'period_s': period_s, 'quiet_s': quiet_s,
+                     'until_s': duration_s - 2.0, 'seed': seed, 'domain': domain,
+                     'idle': idle_caller, 'control_s': control_s})],
+                env=env, stdout=subprocess.PIPE, text=True)
         out, _ = driver.communicate(timeout=duration_s + 180)
         if driver.returncode != 0:
             raise ProcessError(f'the driver failed (exit {driver.returncode}): {out[-2000:]}')
+        if caller is not None:
+            text, _ = caller.communicate(timeout=300)
+            lines = [ln for ln in text.splitlines() if ln.startswith('{')]
+            if caller.returncode != 0 or not lines:
+                raise ProcessError(f'the caller failed (exit {caller.returncode}): {text[-2000:]}')
+            calls = json.loads(lines[-1])
         sent = np.load(stamps_file.name)
         wait_until(lambda: count[0] >= sent.size, 60.0, 'every report')
     finally:
         probe.close()
         stop_node(proc)
         os.unlink(stamps_file.name)
+    windows = [tuple(w) for w in calls['windows']]
+    statuses = {int(k): v for k, v in calls['statuses'].items()}
     n = min(count[0], n_max)
     got, latency = stamps[:n], (recv[:n] - stamps[:n]) * 1e-6
     during = np.zeros(n, dtype=bool)
@@ -173,6 +182,15 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
     base = percentiles(latency[warm & ~during])
     busy = percentiles(latency[during])
     delay = {k: max(0.0, busy[k] - base[k]) for k in base} if busy and base else {}
+    # Paired: each call's window against the equally long stretch just before it.
+    paired = []
+    for t0, t1 in windows:
+        before = (got >= 2 * t0 - t1) & (got < t0) & ~during
+        inside = (got >= t0) & (got <= t1)
+        if before.any() and inside.any():
+            a, b = latency[inside], latency[before]
+            paired.append({'p50': float(np.median(a) - np.median(b)),
+                           'max': float(a.max() - b.max())})
     names = {0: 'ok', 1: 'warning', 2: 'invalid_input', 3: 'stale_input', 4: 'error'}
     return {'rate_hz': rate_hz, 'duration_s': duration_s, 'states_per_query': states,
             'sent': int(sent.size), 'reports': int(count[0]),
@@ -183,7 +201,64 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
             'reports_baseline': int(np.sum(warm & ~during)),
             'reports_during_queries': int(np.sum(during)),
             'latency_baseline_ms': base, 'latency_during_queries_ms': busy,
-            'delay_attributable_ms': delay}
+            'delay_attributable_ms': delay,
+            'paired_difference_ms': paired}
+
+
+def caller_main(spec: dict) -> int:
+    """
+    Call ``~/evaluate`` on a schedule and print the call windows (the measurement's caller).
+
+    ``spec``: ``service``, ``robot``, ``states``, ``period_s``, ``quiet_s`` (from now),
+    ``until_s`` (no call starts later), ``seed``, ``domain``. Prints one JSON object:
+    ``windows`` ([start, end] wall-clock [ns] of each call) and ``statuses`` (of the reports).
+    """
+    from awp_ros_msgs.srv import Evaluate
+
+    from awp_ros.robot.config import load_config
+
+    if spec.get('idle') or spec.get('control_s'):   # lowest priority (module docstring)
+        for task in os.listdir('/proc/self/task'):
+            os.sched_setscheduler(int(task), os.SCHED_IDLE, os.sched_param(0))
+    probe = Probe(spec['domain'], 'awp_query_load_caller')
+    windows, statuses = [], {}
+    control = None
+    if spec.get('control_s'):
+        from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+        from awp_ros.runtime import tune_process
+        tune_process()
+        control = FeasibilityEvaluator(spec['robot'])
+    try:
+        client = probe.node.create_client(Evaluate, spec['service'])
+        if not client.wait_for_service(timeout_sec=60.0):
+            raise ProcessError(f"{spec['service']} did not appear")
+        rng = np.random.default_rng(spec['seed'])
+        config = load_config(spec['robot'])
+        start = time.monotonic()
+        next_call = start + spec['quiet_s']
+        while True:
+            request = query_request(config, spec['states'], rng)      # before the window
+            left = next_call - time.monotonic()
+            if left > 0:
+                time.sleep(left)
+            if time.monotonic() - start > spec['until_s']:
+                break
+            t0 = time.time_ns()
+            if control is not None:         # the same kind of work, no call, no DDS
+                end = time.monotonic() + spec['control_s']
+                while time.monotonic() < end:
+                    control.evaluate(control.standing_state())
+            else:
+                future = client.call_async(request)
+                wait_until(future.done, 120.0, 'an ~/evaluate response', poll_s=0.002)
+                for report in future.result().reports:
+                    statuses[report.status] = statuses.get(report.status, 0) + 1
+            windows.append((t0, time.time_ns()))
+            next_call += max(spec['period_s'], (windows[-1][1] - t0) * 1e-9)
+    finally:
+        probe.close()
+    print(json.dumps({'windows': windows, 'statuses': statuses}), flush=True)
+    return 0
 
 
 def thread_variant_main() -> int:
@@ -238,6 +313,14 @@ def table(result: dict) -> str:
             n = '' if count is None else str(result[count])
             lines.append(f'{label:<28}{n:>8}' + ''.join(f'{values[k]:>9.3f}'
                                                         for k in ('p50', 'p99', 'max')))
+    paired = result.get('paired_difference_ms') or []
+    if paired:
+        p50 = sorted(p['p50'] for p in paired)
+        mx = sorted(p['max'] for p in paired)
+        lines.append(f'paired (each call vs the stretch before it): p50 difference median '
+                     f'{p50[len(p50) // 2]:.3f} ms (range {p50[0]:.3f} .. {p50[-1]:.3f}), '
+                     f'max difference median {mx[len(mx) // 2]:.3f} ms (range {mx[0]:.3f} .. '
+                     f'{mx[-1]:.3f})')
     return '\n'.join(lines)
 
 
@@ -246,6 +329,8 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     if argv[:1] == [_THREAD_VARIANT]:
         return thread_variant_main()
+    if argv[:1] == [_CALLER]:
+        return caller_main(json.loads(argv[1]))
     parser = argparse.ArgumentParser(prog='python -m awp_ros.soak.query_load',
                                      description=__doc__.split('\n\n')[0])
     parser.add_argument('--rate', type=float, default=500.0, help='joint states [Hz]')
@@ -258,6 +343,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--namespace', default='/query_load', help="the node's namespace")
     parser.add_argument('--seed', type=int, default=0, help='seed of the query postures')
     parser.add_argument('--no-queries', action='store_true', help='the baseline alone')
+    parser.add_argument('--idle-caller', action='store_true',
+                        help="run the caller at SCHED_IDLE (leave out the planner's own CPU use)")
+    parser.add_argument('--control', type=float, default=0.0, metavar='SECONDS',
+                        help='control experiment: instead of each call, evaluate for this long '
+                        'at SCHED_IDLE in the caller (no call, no DDS)')
     parser.add_argument('--variant', choices=('worker', 'thread'), default='worker',
                         help='who answers ~/evaluate: the worker process (awp_node as it is) '
                         'or, for comparison, a thread of the node process')
@@ -267,7 +357,8 @@ def main(argv: list[str] | None = None) -> int:
     result = run_query_load(args.rate, args.duration, states=args.states,
                             period_s=args.period, quiet_s=args.quiet, robot=args.robot,
                             namespace=args.namespace, seed=args.seed,
-                            queries=not args.no_queries, command=command)
+                            queries=not args.no_queries, command=command,
+                            idle_caller=args.idle_caller, control_s=args.control)
     result['variant'] = args.variant
     print(table(result))
     print(json.dumps(result))

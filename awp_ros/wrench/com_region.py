@@ -351,13 +351,7 @@ def _polar(Dm: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     limit *= tol
     limit += 1.0
     for _ in range(_MAX_ROUNDS):
-        C = Dm[:, chain]
-        Cn = C[:, _shift(chain.size, 1)]
-        det = C[0] * Cn[1] - C[1] * Cn[0]
-        if chain.size < 3 or float(det.min()) <= 0.0:
-            raise InputError(_UNBOUNDED)
-        V = (Cn - C)[::-1] / det
-        V[1] *= -1.0                                     # ((b_y - a_y), (a_x - b_x)) / det
+        V = _edge_vertices(Dm, chain)
         excess = V.T @ Dm                                # (k, m): c . v_j
         excess -= limit
         worst = excess.max(axis=1)
@@ -370,14 +364,25 @@ def _polar(Dm: np.ndarray, tol: float) -> tuple[np.ndarray, np.ndarray]:
     except QhullError as exc:
         raise GeometryError(f'the CoM polygon: qhull failed on the dual points: {exc}') from exc
     chain = np.sort(hull.vertices)        # Dm is sorted by angle: index order is ccw
+    return index[chain], _edge_vertices(Dm, chain)
+
+
+def _edge_vertices(Dm: np.ndarray, chain: np.ndarray) -> np.ndarray:
+    """
+    Return the primal vertices (2, k) of the ccw chain ``Dm[:, chain]`` of dual points.
+
+    ``V[:, j]`` solves ``a . v = b . v = 1`` for the chain's edge (a, b) = (j, j + 1).
+
+    :raises InputError: 0 is not strictly inside the chain (an unbounded region).
+    """
     C = Dm[:, chain]
     Cn = C[:, _shift(chain.size, 1)]
     det = C[0] * Cn[1] - C[1] * Cn[0]
     if chain.size < 3 or float(det.min()) <= 0.0:
         raise InputError(_UNBOUNDED)
     V = (Cn - C)[::-1] / det
-    V[1] *= -1.0
-    return index[chain], V
+    V[1] *= -1.0                                         # ((b_y - a_y), (a_x - b_x)) / det
+    return V
 
 
 def _chain_vertices(points: list[list[float]]) -> np.ndarray | None:

@@ -14,7 +14,8 @@ from awp_ros.bags.reader import bag_info, BagMessage, read_bag
 from awp_ros.bags.writer import BagWriter
 from awp_ros.errors import BagError
 from awp_ros.gait.bag import default_bag_path, DEFAULT_START_NS, gait_messages, write_gait_bag
-from awp_ros.gait.generator import GaitParams, generate_gait
+from awp_ros.gait.generator import generate_gait
+from awp_ros.gait.params import GaitParams
 from awp_ros.robot.config import load_config
 
 DEFAULT_BAG = Path(__file__).resolve().parents[2] / 'config' / 'hyq_gait.mcap'

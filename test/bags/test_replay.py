@@ -21,7 +21,8 @@ from awp_ros.bags.summary import summarize_reports
 from awp_ros.bags.writer import BagWriter
 from awp_ros.cli.replay import main as replay_main, parse_override
 from awp_ros.gait.bag import write_gait_bag
-from awp_ros.gait.generator import GaitParams, generate_gait
+from awp_ros.gait.generator import generate_gait
+from awp_ros.gait.params import GaitParams
 from awp_ros.robot.config import load_config, load_parameters
 from awp_ros.ros.pipeline import Pipeline
 

@@ -20,9 +20,10 @@ import pytest
 from awp_ros.cli.pipeline_bench import time_pipeline
 from awp_ros.evaluation.evaluator import STAGES
 from awp_ros.gait.bag import DEFAULT_START_NS, write_gait_bag
-from awp_ros.gait.generator import GaitParams, generate_gait
+from awp_ros.gait.generator import generate_gait
+from awp_ros.gait.params import GaitParams
 from awp_ros.robot.config import load_config, load_parameters
-from awp_ros.ros.pipeline_params import PipelineParams
+from awp_ros.robot.parameters import PipelineParams
 
 
 @pytest.fixture(scope='module')

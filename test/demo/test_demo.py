@@ -20,7 +20,8 @@ from awp_ros.demo.table import (comparison_lines, format_row, intended_windows, 
                                 TABLE_HEADER)
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.gait.bag import default_bag_path
-from awp_ros.gait.generator import GaitParams, generate_gait
+from awp_ros.gait.generator import generate_gait
+from awp_ros.gait.params import GaitParams
 from awp_ros.robot.config import find_parameters_file, load_config
 from awp_ros.robot.state import RobotState
 

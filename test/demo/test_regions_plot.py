@@ -22,8 +22,8 @@ from awp_ros.bags.writer import BagWriter
 from awp_ros.demo.regions_plot import (_instants, demo_regions_plot, gait_world, plot_regions,
                                        read_regions)
 from awp_ros.gait.bag import default_bag_path
+from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.pipeline import Pipeline
-from awp_ros.ros.pipeline_params import PipelineParams
 
 SECONDS = 2.6           # the first crawl swing starts at 1.1 s
 EVERY = 5               # every 5th joint state (100 Hz)

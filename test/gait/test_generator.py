@@ -10,7 +10,8 @@ import pytest
 from scipy.spatial import ConvexHull
 
 from awp_ros.errors import ConfigError, InputError, ModelError
-from awp_ros.gait.generator import GaitParams, generate_gait, GRAVITY
+from awp_ros.gait.generator import generate_gait
+from awp_ros.gait.params import GaitParams, GRAVITY
 from awp_ros.robot.config import load_config
 from awp_ros.robot.model import RobotModel
 

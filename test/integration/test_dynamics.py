@@ -54,9 +54,9 @@ from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.geometry.margin import polytope_margin
 from awp_ros.node.launcher import start_node, stop_node
 from awp_ros.robot.config import find_parameters_file
+from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.conversions import polytope_from_msg
 from awp_ros.ros.pipeline import Pipeline
-from awp_ros.ros.pipeline_params import PipelineParams
 from cases import FEET, stamp
 
 BIN = Path(sys.executable).parent

@@ -24,13 +24,13 @@ from awp_ros_msgs.msg import ContactState, FeasibilityReport
 from awp_ros_msgs.srv import Evaluate
 from geometry_msgs.msg import Vector3, Wrench
 import numpy as np
-from rcl_interfaces.srv import SetParameters
 import pytest
+from rcl_interfaces.srv import SetParameters
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState
 
 from awp_ros.cli.eval import main as awp_eval
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
@@ -405,3 +405,32 @@ def test_queries_use_the_model_and_parameters_in_force(ros_env, evaluator, tmp_p
         peer.close()
         log = stop_node(proc)
     assert 'Traceback' not in log, log
+
+
+def test_an_imu_reading_gives_the_base_orientation(client, evaluator, tmp_path):
+    # The IMU frame '' is the root link: the base orientation is the IMU's (awp_eval's
+    # base_orientation); the default motion is quasi-static, so its rates do not enter.
+    docs = _random_states(evaluator, np.random.default_rng(9), 5)[1:]     # 1-4 feet
+    rng = np.random.default_rng(10)
+    imus = []
+    for doc in docs:
+        axis = rng.normal(size=3)
+        half = 0.5 * rng.uniform(0.05, 0.25) * axis / np.linalg.norm(axis)     # 3-14 deg
+        q = np.r_[np.sin(np.linalg.norm(half)) * half / np.linalg.norm(half),
+                  np.cos(np.linalg.norm(half))]
+        doc['base_orientation'] = q.tolist()
+        imu = Imu()
+        imu.orientation.x, imu.orientation.y, imu.orientation.z, imu.orientation.w = q
+        imu.angular_velocity.x = 0.5
+        imus.append(imu)
+    msgs = [_messages(doc, T0 + i) for i, doc in enumerate(docs)]
+    response = client.call(Evaluate.Request(joint_states=[js for js, _ in msgs],
+                                            contacts=[c for _, c in msgs], imu=imus))
+    for doc, rep in zip(docs, response.reports):
+        ref = _awp_eval(doc, tmp_path)
+        assert rep.status <= FeasibilityReport.STATUS_WARNING, rep.status_message
+        for name in ('awp', 'fwp', 'fws'):
+            assert _close(ref[name]['margin'], getattr(rep, f'{name}_margin')), name
+        np.testing.assert_allclose([rep.com.x, rep.com.y, rep.com.z], ref['com'], atol=1e-12)
+        level = _awp_eval({k: v for k, v in doc.items() if k != 'base_orientation'}, tmp_path)
+        assert not np.allclose(ref['com'], level['com'])       # the tilt did matter

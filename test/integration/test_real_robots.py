@@ -23,11 +23,11 @@ import time
 from awp_ros_msgs.msg import ContactState, FeasibilityReport
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
-import numpy as np
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 import yaml
 
@@ -108,9 +108,8 @@ class Peer:
     def wait(self, predicate, what: str, timeout: float = 60.0) -> None:
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
-            with self.lock:
-                if predicate():
-                    return
+            if predicate():
+                return
             time.sleep(0.02)
         raise AssertionError(f'timed out after {timeout} s waiting for {what}; inputs '
                              f'diagnostics: {self.inputs()}')
@@ -206,7 +205,6 @@ def test_awp_demo_generates_the_a1_gait_and_awp_replay_replays_it(ros_env, a1_ya
     assert res.returncode == 0, res.stdout + res.stderr
     bag = out / 'a1_gait.mcap'                       # generated: HyQ's bag is not A1's
     first = next(iter(read_bag(bag, topics=['/joint_states'])))
-    from rclpy.serialization import deserialize_message
     assert set(deserialize_message(first.data, JointState).name) == set(STANDING)
     replayed = tmp_path / 'replay.mcap'
     res = subprocess.run([str(BIN / 'awp_replay'), str(bag), '-o', str(replayed), '--robot',
@@ -364,3 +362,42 @@ def test_another_type_a_qos_mismatch_and_no_publisher_are_named_in_diagnostics(a
             'this node subscribes with sensor_msgs/msg/Imu') in message
     assert '/contacts has no publisher' in message
     assert not peer.reports                      # nothing arrived, nothing was answered
+
+
+def test_a_typo_in_the_node_config_is_named_until_a_key_is_set(ros_env, a1_yaml, a1,
+                                                               tmp_path):
+    typo = tmp_path / 'a1_typo.yaml'
+    params = yaml.safe_load(a1_yaml.read_text())
+    params['/**']['ros__parameters']['friction_coeficient'] = 0.3
+    typo.write_text(yaml.safe_dump(params))
+    proc = start_node(env=ros_env, robot=None, params_file=typo,
+                      ros_args=('-p', 'diagnostics_period_s:=0.1', '-p', 'marker_worker:=false'))
+    peer = Peer(ros_env)
+    try:
+        peer.wait(lambda: peer.node.count_publishers('/awp_node/report') > 0, 'awp_node')
+        js = peer.publisher(JointState, 'joint_states')
+        cs = peer.publisher(ContactState, 'contacts')
+        peer.wait_subscribed(js)
+        cs.publish(contacts(T0, FEET))
+        js.publish(joints(a1, STANDING, T0 + 1000))
+        peer.wait(lambda: peer.reports, 'a report')
+        rep = peer.reports[0]
+        assert rep.status == S.STATUS_ERROR
+        assert ("unknown parameter: 'friction_coeficient' (did you mean "
+                "'friction_coefficient'?)") in rep.status_message
+        # The intended key, set at runtime (without the ros2 CLI), builds the model.
+        res = subprocess.run([str(BIN / 'awp_param'), 'set', '/awp_node',
+                              'friction_coefficient', '0.3'], env=ros_env,
+                             capture_output=True, text=True, timeout=120)
+        assert res.returncode == 0, res.stderr
+        # The contacts sent before the model existed are used: no new contacts message.
+        js.publish(joints(a1, STANDING, T0 + 2000))
+        peer.wait(lambda: len(peer.reports) == 2, 'the second report')
+        rep = peer.reports[1]
+        assert rep.status == S.STATUS_OK, rep.status_message
+        state = RobotState(joint_positions=STANDING, friction_coefficient=0.3)
+        assert rep.fwp_margin == pytest.approx(a1.evaluate(state).fwp.margin, abs=1e-7)
+    finally:
+        peer.close()
+        log = stop_node(proc)
+    assert 'Traceback' not in log, log

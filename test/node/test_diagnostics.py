@@ -127,3 +127,12 @@ def test_on_change_contacts_are_not_stale_and_extra_joints_are_one_entry():
     assert inputs.level == DiagnosticStatus.OK, inputs.message
     assert _values(inputs)['joint_states ignored joints (not in the model)'] == \
         'arm_joint, wheel_joint'
+
+
+def test_a_second_publisher_before_its_matched_event_is_no_false_gap():
+    d = NodeDiagnostics('n', 'hyq', ['joint_states'])
+    d.matched('joint_states', 1)                     # the second match not handled yet
+    seqs = [100, 101, 1, 102, 2, 103, 3]
+    assert [d.sequence('joint_states', s) for s in seqs] == [0] * len(seqs)
+    assert d.sequence('joint_states', 106) == 2      # 104, 105 of the first: a real gap
+    assert d.inputs['joint_states'].gaps == 2

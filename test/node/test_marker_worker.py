@@ -14,9 +14,9 @@ from visualization_msgs.msg import MarkerArray
 
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.node.marker_worker import MarkerWorker
+from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.markers import build_markers
 from awp_ros.ros.pipeline import Pipeline
-from awp_ros.ros.pipeline_params import PipelineParams
 from cases import contacts_msg, joints_msg, T0
 
 

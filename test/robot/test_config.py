@@ -8,9 +8,10 @@ import pytest
 import yaml
 
 from awp_ros.errors import ConfigError
-from awp_ros.robot.config import (available_configs, check_keys, config_dirs,
-                                  find_parameters_file, load_config, read_parameters, ROBOT_KEYS,
-                                  RobotConfig, srdf_standing_posture, urdf_robot_name)
+from awp_ros.robot.config import (available_configs, check_keys, config_dirs, find_parameters_file,
+                                  load_config, read_parameters, RobotConfig, srdf_standing_posture,
+                                  urdf_robot_name)
+from awp_ros.robot.parameters import ROBOT_KEYS
 
 REPO = Path(__file__).resolve().parents[2]
 SHIPPED = ['anymal_c', 'go2', 'hyq', 'solo12']

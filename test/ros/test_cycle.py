@@ -21,10 +21,10 @@ from scipy.spatial import ConvexHull
 
 from awp_ros.bags.message_types import OUTPUT_TYPES, serialize, typestore
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.conversions import region_polygon_msg, stamp_to_ns
 from awp_ros.ros.cycle import OUTPUTS
 from awp_ros.ros.pipeline import Pipeline
-from awp_ros.ros.pipeline_params import PipelineParams
 from cases import contacts_msg, FEET, joints_msg, stamp, T0
 
 S = FeasibilityReport

@@ -15,11 +15,11 @@ from sensor_msgs.msg import Imu, JointState
 from awp_ros.errors import ConfigError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.robot.config import load_config
+from awp_ros.robot.parameters import PipelineParams
 from awp_ros.robot.state import RobotState
 from awp_ros.ros.conversions import polytope_from_msg, stamp_to_ns
 from awp_ros.ros.cycle import OUTPUTS
 from awp_ros.ros.pipeline import Pipeline
-from awp_ros.ros.pipeline_params import PipelineParams
 from cases import contacts_msg, efforts_for, FEET, joints_msg, stamp, T0
 
 S = FeasibilityReport

@@ -465,7 +465,7 @@ def test_synthetic_box_thin_and_empty():
 
 def test_chebyshev_fallback_to_highs_agrees(monkeypatch):
     """The dual-simplex Chebyshev LP and one HiGHS LP over every row give the same region."""
-    from awp_ros.wrench import com_region as module
+    import awp_ros.wrench.com_region as module
     ev, state, oracle, _ = random_case(3, 3)
     _, fws, _, _ = wrench_sets(ev, state)
     f = oracle.force()
