@@ -29,7 +29,9 @@ of a state is what its own messages give), and it is strict about joint names:
 - ``contacts``: ``contacts[i]`` (one per joint state) or ``contacts[0]`` for all; stance from
   ``in_contact``, normals (world-aligned axes) and friction coefficients as in the stream
   (empty = the configured ``contact_normal`` / ``friction_coefficient``); no contacts at
-  all = every foot in contact with the configured normal and coefficient;
+  all: with ``contact_source`` ``effort`` the feet whose measured normal force (from the joint
+  state's efforts) is above ``contact_force_on_n`` (a query has no past: every foot starts in
+  swing), else every foot, each with the configured normal and coefficient;
 - ``imu``: ``imu[i]`` or ``imu[0]`` for all, empty = none: the base orientation (through the
   IMU's mounting, frame ``header.frame_id``, '' = the root link) whenever given, and with
   ``motion`` measured (:attr:`PipelineParams.measured_motion`) its angular velocity and
@@ -77,6 +79,7 @@ from awp_ros.geometry.polytope import Polytope
 from awp_ros.node.marker_worker import _LENGTH, _read, _write
 from awp_ros.robot.config import RobotConfig
 from awp_ros.robot.parameters import PipelineParams
+from awp_ros.ros.contact_source import EffortContacts
 from awp_ros.ros.conversions import (report_msg, robot_state_from_msgs, stamp_to_ns,
                                      wrench_polytope_msg)
 from awp_ros.ros.pipeline import MAX_REASON_CHARS, unevaluated_report
@@ -146,18 +149,25 @@ def _evaluate_one(evaluator: FeasibilityEvaluator, p: PipelineParams, js, contac
     header = Header(stamp=js.header.stamp, frame_id=p.wrench_frame_id)
     polytopes = None
     try:
+        by_effort = contacts is None and p.contact_source == 'effort'
         state = robot_state_from_msgs(js, contacts, imu, feet=evaluator.feet,
                                       use_velocities=p.use_joint_velocities,
-                                      use_efforts=p.use_joint_efforts)
-        if contacts is None:
-            state.stance = list(evaluator.feet)
+                                      use_efforts=p.use_joint_efforts or by_effort)
         if imu is not None or p.measured_motion:
             _add_motion(evaluator, p, state, stamp_to_ns(js.header.stamp), imu)
+        if by_effort:       # a query has no past: each foot starts in swing (touch-down)
+            state.stance = EffortContacts(evaluator, on_n=p.contact_force_on_n,
+                                          off_n=p.contact_force_off_n).update(state)
+            if not p.use_joint_efforts:
+                state.joint_efforts = None
+        elif contacts is None:
+            state.stance = list(evaluator.feet)
         w = None
         if wrench is not None:
             f, t = wrench.force, wrench.torque
             w = np.array([f.x, f.y, f.z, t.x, t.y, t.z], dtype=float)
-        result = evaluator.evaluate(state, fws=True, wrench=w)
+        # No odometry in a query: a measured twist's linear part is a placeholder zero.
+        result = evaluator.evaluate(state, fws=True, wrench=w, base_velocity_known=False)
         warnings = list(result.warnings)
         if not result.stance:
             warnings.append('no foot in contact: every wrench set is {0}, no wrench but zero '

@@ -232,8 +232,9 @@ PARAMETER_DOCS = {
     'marker_rate_hz': 'marker publication rate by joint-state stamps [Hz]; 0 = no markers',
     'marker_force_scale': 'scene length per newton of the drawn polytopes and wrench [m/N]',
     'marker_moment_scale': 'scene length per newton-metre of the drawn moment [m/(N.m)]',
-    'use_imu': 'subscribe to imu and take its orientation as the base orientation '
-               '(read-only)',
+    'use_imu': 'subscribe to imu (sensor_msgs/Imu, mounting from the URDF frame '
+               'header.frame_id): the base orientation and, with motion measured (auto), its '
+               'angular velocity and specific force (read-only)',
     'use_joint_velocities': 'use joint_states velocities (Coriolis terms of the bias '
                             'torques, seed eq. 1)',
     'max_queue_delay_s': 'load shedding: a joint state that waited longer than this in the '

@@ -26,7 +26,9 @@ cores.
 ``--idle-caller`` runs the caller at ``SCHED_IDLE`` (what the queries cost the stream through
 the node, without the caller's own work); ``--control S`` is the control experiment: in place of
 each call the caller evaluates for ``S`` seconds at ``SCHED_IDLE`` (no call, no DDS), which shows
-what the same kind of CPU work costs the stream when the node has nothing to do with it.
+what the same kind of CPU work costs the stream when the node has nothing to do with it;
+``--alternate`` makes every other window such a control (the previous call's states, for as long
+as that call took), so that calls and controls share one run and its conditions.
 ``--variant thread`` runs, for comparison, a node that answers ``~/evaluate`` the other way:
 from a thread of the node process (a second executor, its own evaluator), not the worker
 process (:func:`thread_variant_main`).
@@ -88,7 +90,7 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
                    namespace: str = '/query_load', env: dict[str, str] | None = None,
                    seed: int = 0, queries: bool = True,
                    command: list[str] | None = None, idle_caller: bool = False,
-                   control_s: float = 0.0) -> dict:
+                   control_s: float = 0.0, alternate: bool = False) -> dict:
     """
     Run one measurement (module docstring) and return its figures.
 
@@ -104,8 +106,12 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
         queries cost the stream through the node alone, not through the caller's own work
         (building requests, reading 100 reports).
     :param control_s: > 0: the control experiment: instead of each call, the caller runs
-        ``evaluate`` (FWS included) for this long [s] at ``SCHED_IDLE``, no call and no DDS:
-        what the same kind of work costs the stream when the node has nothing to do with it.
+        ``evaluate`` (FWS included) on the call's states for this long [s] at ``SCHED_IDLE``,
+        no call and no DDS: what the same work costs the stream when the node has nothing to
+        do with it.
+    :param alternate: every other window is the control (the caller at ``SCHED_IDLE``, the
+        previous call's states for as long as that call took): calls and controls in the same
+        run, ``paired_control_ms`` the controls' paired differences.
     :return: ``latency_baseline_ms``, ``latency_during_queries_ms`` (p50, p99, max),
         ``delay_attributable_ms`` (during minus baseline at p50, p99 and max; clipped at 0),
         ``paired_difference_ms`` (per call: p50 and max of the latencies during it minus
@@ -154,7 +160,8 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
                     {'service': f'{ns}/awp_node/evaluate', 'robot': robot, 'states': states,
                      'period_s': period_s, 'quiet_s': quiet_s,
                      'until_s': duration_s - 2.0, 'seed': seed, 'domain': domain,
-                     'idle': idle_caller, 'control_s': control_s})],
+                     'idle': idle_caller, 'control_s': control_s,
+                     'alternate': alternate})],
                 env=env, stdout=subprocess.PIPE, text=True)
         out, _ = driver.communicate(timeout=duration_s + 180)
         if driver.returncode != 0:
@@ -171,26 +178,33 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
         probe.close()
         stop_node(proc)
         os.unlink(stamps_file.name)
-    windows = [tuple(w) for w in calls['windows']]
+    windows = [tuple(w[:2]) for w in calls['windows'] if w[2] == 'call']
+    controls = [tuple(w[:2]) for w in calls['windows'] if w[2] == 'control']
     statuses = {int(k): v for k, v in calls['statuses'].items()}
     n = min(count[0], n_max)
     got, latency = stamps[:n], (recv[:n] - stamps[:n]) * 1e-6
     during = np.zeros(n, dtype=bool)
     for t0, t1 in windows:
         during |= (got >= t0) & (got <= t1)
+    busy_any = during.copy()
+    for t0, t1 in controls:
+        busy_any |= (got >= t0) & (got <= t1)
     warm = got >= int(sent[0]) + int(quiet_s / 2 * 1e9)
-    base = percentiles(latency[warm & ~during])
+    base = percentiles(latency[warm & ~busy_any])
     busy = percentiles(latency[during])
     delay = {k: max(0.0, busy[k] - base[k]) for k in base} if busy and base else {}
-    # Paired: each call's window against the equally long stretch just before it.
-    paired = []
-    for t0, t1 in windows:
-        before = (got >= 2 * t0 - t1) & (got < t0) & ~during
-        inside = (got >= t0) & (got <= t1)
-        if before.any() and inside.any():
-            a, b = latency[inside], latency[before]
-            paired.append({'p50': float(np.median(a) - np.median(b)),
-                           'max': float(a.max() - b.max())})
+    # Paired: each window against the equally long stretch just before it.
+
+    def pairs(spans: list) -> list:
+        out = []
+        for t0, t1 in spans:
+            before = (got >= 2 * t0 - t1) & (got < t0) & ~busy_any
+            inside = (got >= t0) & (got <= t1)
+            if before.any() and inside.any():
+                a, b = latency[inside], latency[before]
+                out.append({'p50': float(np.median(a) - np.median(b)),
+                            'max': float(a.max() - b.max())})
+        return out
     names = {0: 'ok', 1: 'warning', 2: 'invalid_input', 3: 'stale_input', 4: 'error'}
     return {'rate_hz': rate_hz, 'duration_s': duration_s, 'states_per_query': states,
             'sent': int(sent.size), 'reports': int(count[0]),
@@ -198,11 +212,12 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
             'queries': len(windows),
             'query_s': [round((t1 - t0) * 1e-9, 3) for t0, t1 in windows],
             'query_statuses': {names[k]: v for k, v in sorted(statuses.items())},
-            'reports_baseline': int(np.sum(warm & ~during)),
+            'reports_baseline': int(np.sum(warm & ~busy_any)),
             'reports_during_queries': int(np.sum(during)),
             'latency_baseline_ms': base, 'latency_during_queries_ms': busy,
             'delay_attributable_ms': delay,
-            'paired_difference_ms': paired}
+            'paired_difference_ms': pairs(windows),
+            'paired_control_ms': pairs(controls)}
 
 
 def caller_main(spec: dict) -> int:
@@ -210,21 +225,24 @@ def caller_main(spec: dict) -> int:
     Call ``~/evaluate`` on a schedule and print the call windows (the measurement's caller).
 
     ``spec``: ``service``, ``robot``, ``states``, ``period_s``, ``quiet_s`` (from now),
-    ``until_s`` (no call starts later), ``seed``, ``domain``. Prints one JSON object:
-    ``windows`` ([start, end] wall-clock [ns] of each call) and ``statuses`` (of the reports).
+    ``until_s`` (no call starts later), ``seed``, ``domain``, ``idle``, ``control_s``,
+    ``alternate``. Prints one JSON object: ``windows`` ([start, end, kind]: wall-clock [ns]
+    of each window, ``call`` or ``control``) and ``statuses`` (of the reports).
     """
     from awp_ros_msgs.srv import Evaluate
 
     from awp_ros.robot.config import load_config
 
-    if spec.get('idle') or spec.get('control_s'):   # lowest priority (module docstring)
+    alternate = bool(spec.get('alternate'))
+    if spec.get('idle') or spec.get('control_s') or alternate:   # lowest priority (docstring)
         for task in os.listdir('/proc/self/task'):
             os.sched_setscheduler(int(task), os.SCHED_IDLE, os.sched_param(0))
     probe = Probe(spec['domain'], 'awp_query_load_caller')
     windows, statuses = [], {}
     control = None
-    if spec.get('control_s'):
+    if spec.get('control_s') or alternate:
         from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+        from awp_ros.robot.state import RobotState
         from awp_ros.runtime import tune_process
         tune_process()
         control = FeasibilityEvaluator(spec['robot'])
@@ -236,6 +254,7 @@ def caller_main(spec: dict) -> int:
         config = load_config(spec['robot'])
         start = time.monotonic()
         next_call = start + spec['quiet_s']
+        last = None
         while True:
             request = query_request(config, spec['states'], rng)      # before the window
             left = next_call - time.monotonic()
@@ -243,17 +262,29 @@ def caller_main(spec: dict) -> int:
                 time.sleep(left)
             if time.monotonic() - start > spec['until_s']:
                 break
+            # alternate: every other window is the control, as long as the call before it
+            is_control = control is not None and (not alternate or len(windows) % 2 == 1)
+            if is_control and alternate and last is not None:
+                request = last
+            last = request
             t0 = time.time_ns()
-            if control is not None:         # the same kind of work, no call, no DDS
-                end = time.monotonic() + spec['control_s']
+            if is_control:                  # the same work, no call, no DDS
+                states = [RobotState(joint_positions=dict(zip(js.name, js.position)),
+                                     stance=[f for f, c in zip(cs.names, cs.in_contact) if c])
+                          for js, cs in zip(request.joint_states, request.contacts)]
+                length = (windows[-1][1] - windows[-1][0]) * 1e-9 if alternate \
+                    else spec['control_s']
+                end = time.monotonic() + length
+                k = 0
                 while time.monotonic() < end:
-                    control.evaluate(control.standing_state())
+                    control.evaluate(states[k % len(states)])
+                    k += 1
             else:
                 future = client.call_async(request)
                 wait_until(future.done, 120.0, 'an ~/evaluate response', poll_s=0.002)
                 for report in future.result().reports:
                     statuses[report.status] = statuses.get(report.status, 0) + 1
-            windows.append((t0, time.time_ns()))
+            windows.append((t0, time.time_ns(), 'control' if is_control else 'call'))
             next_call += max(spec['period_s'], (windows[-1][1] - t0) * 1e-9)
     finally:
         probe.close()
@@ -313,14 +344,15 @@ def table(result: dict) -> str:
             n = '' if count is None else str(result[count])
             lines.append(f'{label:<28}{n:>8}' + ''.join(f'{values[k]:>9.3f}'
                                                         for k in ('p50', 'p99', 'max')))
-    paired = result.get('paired_difference_ms') or []
-    if paired:
-        p50 = sorted(p['p50'] for p in paired)
-        mx = sorted(p['max'] for p in paired)
-        lines.append(f'paired (each call vs the stretch before it): p50 difference median '
-                     f'{p50[len(p50) // 2]:.3f} ms (range {p50[0]:.3f} .. {p50[-1]:.3f}), '
-                     f'max difference median {mx[len(mx) // 2]:.3f} ms (range {mx[0]:.3f} .. '
-                     f'{mx[-1]:.3f})')
+    for key, label in (('paired_difference_ms', 'call'), ('paired_control_ms', 'control')):
+        paired = result.get(key) or []
+        if paired:
+            p50 = sorted(p['p50'] for p in paired)
+            mx = sorted(p['max'] for p in paired)
+            lines.append(f'paired (each {label} vs the stretch before it): p50 difference '
+                         f'median {p50[len(p50) // 2]:.3f} ms (range {p50[0]:.3f} .. '
+                         f'{p50[-1]:.3f}), max difference median {mx[len(mx) // 2]:.3f} ms '
+                         f'(range {mx[0]:.3f} .. {mx[-1]:.3f})')
     return '\n'.join(lines)
 
 
@@ -348,6 +380,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--control', type=float, default=0.0, metavar='SECONDS',
                         help='control experiment: instead of each call, evaluate for this long '
                         'at SCHED_IDLE in the caller (no call, no DDS)')
+    parser.add_argument('--alternate', action='store_true',
+                        help='every other window is the control (same states, as long as the '
+                        'call before it): calls and controls in one run')
     parser.add_argument('--variant', choices=('worker', 'thread'), default='worker',
                         help='who answers ~/evaluate: the worker process (awp_node as it is) '
                         'or, for comparison, a thread of the node process')
@@ -358,8 +393,10 @@ def main(argv: list[str] | None = None) -> int:
                             period_s=args.period, quiet_s=args.quiet, robot=args.robot,
                             namespace=args.namespace, seed=args.seed,
                             queries=not args.no_queries, command=command,
-                            idle_caller=args.idle_caller, control_s=args.control)
-    result['variant'] = args.variant
+                            idle_caller=args.idle_caller, control_s=args.control,
+                            alternate=args.alternate)
+    result.update(variant=args.variant, idle_caller=args.idle_caller, control_s=args.control,
+                  alternate=args.alternate)
     print(table(result))
     print(json.dumps(result))
     return 0 if result['missing'] == 0 else 1

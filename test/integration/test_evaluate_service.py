@@ -434,3 +434,35 @@ def test_an_imu_reading_gives_the_base_orientation(client, evaluator, tmp_path):
         np.testing.assert_allclose([rep.com.x, rep.com.y, rep.com.z], ref['com'], atol=1e-12)
         level = _awp_eval({k: v for k, v in doc.items() if k != 'base_orientation'}, tmp_path)
         assert not np.allclose(ref['com'], level['com'])       # the tilt did matter
+
+
+def test_without_contacts_an_effort_source_takes_the_stance_from_the_efforts(ros_env,
+                                                                             evaluator):
+    # contact_source effort: efforts that make lf, rf and lh push 200 N up, rh nothing
+    # (tau = b - J^T f, the leg equations the node inverts) give the stance lf, rf, lh.
+    proc = start_node(env=ros_env, robot=None, params_file=find_parameters_file('hyq'),
+                      params={'contact_source': 'effort'})
+    peer = Client(ros_env)
+    model = evaluator.model
+    q = model.standing_q
+    kin = model.kinematics(q, tuple(FEET))
+    tau = np.zeros(q.size)
+    for k, foot in enumerate(FEET):
+        f = np.array([0.0, 0.0, 0.0 if foot == 'rh_foot' else 200.0])
+        tau[model.legs[foot].v_idx - 6] = kin.bias[k] - kin.J[k].T @ f
+    js = JointState(name=list(model.joint_names), position=q.tolist(), effort=tau.tolist())
+    try:
+        assert peer.client.wait_for_service(timeout_sec=60.0)
+        no_efforts = JointState(name=list(model.joint_names), position=q.tolist())
+        got, bad = peer.call(Evaluate.Request(joint_states=[js, no_efforts])).reports
+        assert list(got.stance_feet) == ['lf_foot', 'rf_foot', 'lh_foot'], got.status_message
+        assert bad.status == FeasibilityReport.STATUS_INVALID_INPUT
+        assert 'carry no efforts' in bad.status_message
+        # Contacts given in the request are used as they are.
+        contacts = ContactState(names=FEET, in_contact=[True, False, False, True])
+        given = peer.call(Evaluate.Request(joint_states=[js], contacts=[contacts])).reports[0]
+        assert list(given.stance_feet) == ['lf_foot', 'rh_foot']
+    finally:
+        peer.close()
+        log = stop_node(proc)
+    assert 'Traceback' not in log, log

@@ -74,7 +74,8 @@ def test_one_version_number(repo):
     assert awp_ros.__version__ == xml_version
 
 
-@pytest.mark.parametrize('exe', ['awp_node', 'awp_replay', 'awp_eval', 'awp_bench', 'awp_demo'])
+@pytest.mark.parametrize('exe', ['awp_node', 'awp_replay', 'awp_eval', 'awp_bench', 'awp_demo',
+                                 'awp_param'])
 def test_console_scripts_answer_help(exe):
     bindir = __import__('pathlib').Path(sys.executable).parent
     result = subprocess.run([str(bindir / exe), '--help'], capture_output=True, text=True,
