@@ -51,7 +51,7 @@ from awp_ros.estimation.imu import BaseMotion, ImuConverter, ImuMount
 from awp_ros.robot.model import RobotModel
 from awp_ros.robot.state import RobotState
 
-__all__ = ['MotionEstimator', 'MotionEstimate', 'OdometryReading']
+__all__ = ['MotionEstimate', 'MotionEstimator', 'OdometryReading', 'fill_motion']
 
 _LEVEL = (0.0, 0.0, 0.0, 1.0)
 
@@ -298,6 +298,37 @@ class MotionEstimator:
                               base_acc, None if imu is None else imu.stamp_ns,
                               None if odom is None else odom.stamp_ns, source, measured,
                               settled)
+
+
+def fill_motion(estimator: MotionEstimator, stamp_ns: int, state: RobotState, *,
+                measured: bool) -> None:
+    """
+    Feed a joint state to ``estimator`` and fill ``state``'s orientation (and motion).
+
+    :param stamp_ns: the joint state's stamp [ns].
+    :param state: the state of the joint state (positions, velocities when used), filled in
+        place: ``base_orientation`` always, and with ``measured`` the base twist and
+        acceleration and the joint velocities and accelerations.
+    :param measured: whether the evaluation uses the measured motion (else only the
+        orientation: quasi-static).
+
+    A state that lacks joints is left as it is (the evaluator names them).
+    """
+    model = estimator.model
+    try:
+        q = model.joint_vector(state.joint_positions)
+        v = None if state.joint_velocities is None \
+            else model.joint_vector(state.joint_velocities)
+    except KeyError:
+        return
+    est = estimator.add_joints(stamp_ns, q, v)
+    state.base_orientation = est.base_orientation
+    if measured:
+        fields = est.state_fields()
+        state.base_twist = fields['base_twist']
+        state.base_acceleration = fields['base_acceleration']
+        state.joint_velocities = fields['joint_velocities']
+        state.joint_accelerations = fields['joint_accelerations']
 
 
 class _History:

@@ -72,7 +72,7 @@ import numpy as np
 from std_msgs.msg import Header
 
 from awp_ros.errors import AwpError, ConfigError, InputError
-from awp_ros.estimation.motion import MotionEstimator
+from awp_ros.estimation.motion import fill_motion, MotionEstimator
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.geometry.linalg import quaternion_matrix
 from awp_ros.geometry.polytope import Polytope
@@ -210,20 +210,7 @@ def _add_motion(evaluator: FeasibilityEvaluator, p: PipelineParams, state, ns: i
         est.set_imu_frame(imu.header.frame_id or model.root_link)
         o, w, f = imu.orientation, imu.angular_velocity, imu.linear_acceleration
         est.add_imu(ns, (o.x, o.y, o.z, o.w), (w.x, w.y, w.z), (f.x, f.y, f.z))
-    try:
-        q = model.joint_vector(state.joint_positions)
-        v = None if state.joint_velocities is None \
-            else model.joint_vector(state.joint_velocities)
-    except KeyError:
-        return
-    motion = est.add_joints(ns, q, v)
-    state.base_orientation = motion.base_orientation
-    if p.measured_motion:
-        fields = motion.state_fields()
-        state.base_twist = fields['base_twist']
-        state.base_acceleration = fields['base_acceleration']
-        state.joint_velocities = fields['joint_velocities']
-        state.joint_accelerations = fields['joint_accelerations']
+    fill_motion(est, ns, state, measured=p.measured_motion)
 
 
 def _empty_polytope(header: Header, kind: str) -> WrenchPolytope:

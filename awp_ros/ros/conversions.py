@@ -360,6 +360,15 @@ def error_report(header: Header, status: int, reason: str, *, compute_time: floa
 # -- inputs --------------------------------------------------------------------------------
 
 
+def _per_name(names: list[str], values, what: str) -> dict | None:
+    """Return ``{name: value}`` of an optional JointState array (None when it is empty)."""
+    if not len(values):
+        return None
+    if len(values) != len(names):
+        raise InputError(f'joint_states has {len(names)} names but {len(values)} {what}')
+    return dict(zip(names, np.asarray(values, dtype=float).tolist()))
+
+
 def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
                           imu: Imu | None = None, *, feet: Sequence[str],
                           use_velocities: bool = True, use_efforts: bool = True,
@@ -396,18 +405,8 @@ def robot_state_from_msgs(joints: JointState, contacts: ContactState | None,
         dup = sorted({n for n in names if names.count(n) > 1})
         raise InputError(f'joint_states names joints twice: {_shorten(dup)}')
     positions = dict(zip(names, np.asarray(joints.position, dtype=float).tolist()))
-    velocities = None
-    if use_velocities and len(joints.velocity):
-        if len(joints.velocity) != len(names):
-            raise InputError(f'joint_states has {len(names)} names but '
-                             f'{len(joints.velocity)} velocities')
-        velocities = dict(zip(names, np.asarray(joints.velocity, dtype=float).tolist()))
-    efforts = None
-    if use_efforts and len(joints.effort):
-        if len(joints.effort) != len(names):
-            raise InputError(f'joint_states has {len(names)} names but '
-                             f'{len(joints.effort)} efforts')
-        efforts = dict(zip(names, np.asarray(joints.effort, dtype=float).tolist()))
+    velocities = _per_name(names, joints.velocity, 'velocities') if use_velocities else None
+    efforts = _per_name(names, joints.effort, 'efforts') if use_efforts else None
     if joint_names is not None:
         unknown = [n for n in names if n not in joint_names]
         if unknown:

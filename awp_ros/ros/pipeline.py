@@ -58,13 +58,12 @@ from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 
 from awp_ros.errors import AwpError, ConfigError, InputError
-from awp_ros.estimation.motion import MotionEstimator
+from awp_ros.estimation.motion import fill_motion, MotionEstimator
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.evaluation.result import WrenchSetResult
 from awp_ros.geometry.linalg import quaternion_matrix
 from awp_ros.robot.config import check_keys, load_config, RobotConfig
 from awp_ros.robot.parameters import PipelineParams, ros_parameters
-from awp_ros.robot.state import RobotState
 from awp_ros.ros.contact_source import EffortContacts
 from awp_ros.ros.conversions import error_report, report_msg, robot_state_from_msgs, stamp_to_ns
 from awp_ros.ros.cycle import Cycle
@@ -378,7 +377,7 @@ class Pipeline:
                     use_velocities=p.use_joint_velocities,
                     use_efforts=p.use_joint_efforts or source == 'effort', notes=notes)
                 if p.use_imu or p.use_odometry or p.measured_motion:
-                    self._add_motion(ns, state, p)
+                    fill_motion(self._estimator, ns, state, measured=p.measured_motion)
                 if source == 'effort':
                     state.stance = self._effort.update(state)
                     if not p.use_joint_efforts:
@@ -436,29 +435,6 @@ class Pipeline:
                      markers_due=markers_due, marker_header=marker_header,
                      marker_frame=frame, style=style, reference_point=R.T @ com,
                      latest_fws=self._latest_fws, pyramid_sides=self.config.pyramid_sides)
-
-    def _add_motion(self, ns: int, state: RobotState, p: PipelineParams) -> None:
-        """
-        Fill ``state``'s motion from the estimator (measured) or only its orientation.
-
-        The joint state's positions (and velocities when used) feed the differentiators; a
-        joint state that lacks joints is left to the evaluator, which names them.
-        """
-        model = self.evaluator.model
-        try:
-            q = model.joint_vector(state.joint_positions)
-            v = None if state.joint_velocities is None \
-                else model.joint_vector(state.joint_velocities)
-        except KeyError:
-            return
-        est = self._estimator.add_joints(ns, q, v)
-        state.base_orientation = est.base_orientation
-        if p.measured_motion:
-            fields = est.state_fields()
-            state.base_twist = fields['base_twist']
-            state.base_acceleration = fields['base_acceleration']
-            state.joint_velocities = fields['joint_velocities']
-            state.joint_accelerations = fields['joint_accelerations']
 
 
 def _due(last_ns: int | None, ns: int, rate_hz: float) -> bool:
