@@ -8,6 +8,7 @@ Test modules import it as ``from cases import ...`` (``test/conftest.py`` puts t
 from __future__ import annotations
 
 from itertools import combinations
+import textwrap
 
 from awp_ros_msgs.msg import ContactState
 import numpy as np
@@ -176,3 +177,40 @@ def efforts_for(evaluator, joints: dict, forces: dict, velocities: dict | None =
     for foot, f in forces.items():
         tau -= fd_jacobian(m.model, q, foot).T @ np.asarray(f, dtype=float)
     return dict(zip(m.joint_names, tau.tolist()))
+
+
+# -- a report recorder process (live tests) ----------------------------------------------------
+
+#: ``python -c REPORT_RECORDER WANT TIMEOUT``: subscribe to /awp_node/report, print ``ready``
+#: once the node's publisher is discovered (a volatile subscription misses what was published
+#: before it matched), then one JSON line per report received (up to WANT, within TIMEOUT s).
+REPORT_RECORDER = textwrap.dedent("""
+    import json, sys, time
+    import rclpy
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from awp_ros_msgs.msg import FeasibilityReport
+    want, timeout = int(sys.argv[1]), float(sys.argv[2])
+    rclpy.init()
+    node = rclpy.create_node('awp_test_recorder')
+    got = []
+    node.create_subscription(FeasibilityReport, '/awp_node/report', got.append,
+                             QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE))
+    deadline = time.monotonic() + timeout
+    while node.count_publishers('/awp_node/report') < 1 and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    for _ in range(10):
+        rclpy.spin_once(node, timeout_sec=0.05)
+    print('ready', flush=True)
+    while len(got) < want and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    for r in got:
+        f, t = r.wrench.force, r.wrench.torque
+        print(json.dumps({'stamp': r.header.stamp.sec * 10**9 + r.header.stamp.nanosec,
+                          'status': r.status, 'message': r.status_message,
+                          'motion': r.motion, 'stance': list(r.stance_feet),
+                          'wrench': [f.x, f.y, f.z, t.x, t.y, t.z],
+                          'awp': r.awp_margin, 'fwp': r.fwp_margin,
+                          'fwp_res': r.fwp_affine_residual}))
+    node.destroy_node()
+    rclpy.shutdown()
+""")

@@ -8,7 +8,6 @@ import math
 from pathlib import Path
 import subprocess
 import sys
-import textwrap
 from types import SimpleNamespace
 
 import pytest
@@ -25,6 +24,7 @@ from awp_ros.gait.generator import generate_gait
 from awp_ros.gait.params import GaitParams
 from awp_ros.robot.config import load_config, load_parameters
 from awp_ros.ros.pipeline import Pipeline
+from cases import REPORT_RECORDER
 
 BIN = Path(sys.executable).parent
 REPORT = '/awp_node/report'
@@ -239,36 +239,6 @@ def test_play_refuses_unknown_message_types(tmp_path, ros_env):
 
 # -- live ---------------------------------------------------------------------------------------
 
-_RECORDER = textwrap.dedent("""
-    import json, sys, time
-    import rclpy
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from awp_ros_msgs.msg import FeasibilityReport
-    want, timeout = int(sys.argv[1]), float(sys.argv[2])
-    rclpy.init()
-    node = rclpy.create_node('awp_test_recorder')
-    got = []
-    node.create_subscription(FeasibilityReport, '/awp_node/report', got.append,
-                             QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE))
-    # Ready only once the node's report publisher is discovered: a volatile subscription
-    # misses what was published before it matched.
-    deadline = time.monotonic() + timeout
-    while node.count_publishers('/awp_node/report') < 1 and time.monotonic() < deadline:
-        rclpy.spin_once(node, timeout_sec=0.1)
-    for _ in range(10):
-        rclpy.spin_once(node, timeout_sec=0.05)
-    print('ready', flush=True)
-    while len(got) < want and time.monotonic() < deadline:
-        rclpy.spin_once(node, timeout_sec=0.1)
-    for r in got:
-        print(json.dumps({'stamp': r.header.stamp.sec * 10**9 + r.header.stamp.nanosec,
-                          'status': r.status, 'stance': list(r.stance_feet),
-                          'awp': r.awp_margin, 'fwp': r.fwp_margin,
-                          'fwp_res': r.fwp_affine_residual}))
-    node.destroy_node()
-    rclpy.shutdown()
-""")
-
 
 def _stop(proc) -> None:
     if proc.poll() is None:
@@ -289,7 +259,7 @@ def test_play_into_a_running_node_gives_the_offline_reports(replayed_measured, g
                              str(repo / 'config' / 'hyq.yaml'), '-p', 'use_imu:=true'],
                             env=ros_env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
-    recorder = subprocess.Popen([sys.executable, '-c', _RECORDER, str(len(offline)), '90'],
+    recorder = subprocess.Popen([sys.executable, '-c', REPORT_RECORDER, str(len(offline)), '90'],
                                 env=ros_env, stdout=subprocess.PIPE, text=True)
     try:
         assert recorder.stdout.readline().strip() == 'ready'

@@ -57,7 +57,7 @@ from awp_ros.robot.config import find_parameters_file
 from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.conversions import polytope_from_msg
 from awp_ros.ros.pipeline import Pipeline
-from cases import FEET, stamp
+from cases import FEET, REPORT_RECORDER, stamp
 
 BIN = Path(sys.executable).parent
 REPORT = '/awp_node/report'
@@ -218,36 +218,6 @@ def test_offline_replay_gives_the_wrench_of_the_motion(offline, motion_bag):
 
 # -- live --------------------------------------------------------------------------------------
 
-_RECORDER = textwrap.dedent("""
-    import json, sys, time
-    import rclpy
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
-    from awp_ros_msgs.msg import FeasibilityReport
-    want, timeout = int(sys.argv[1]), float(sys.argv[2])
-    rclpy.init()
-    node = rclpy.create_node('awp_test_dynamics_recorder')
-    got = []
-    node.create_subscription(FeasibilityReport, '/awp_node/report', got.append,
-                             QoSProfile(depth=5000, reliability=ReliabilityPolicy.RELIABLE))
-    deadline = time.monotonic() + timeout
-    while node.count_publishers('/awp_node/report') < 1 and time.monotonic() < deadline:
-        rclpy.spin_once(node, timeout_sec=0.1)
-    for _ in range(10):
-        rclpy.spin_once(node, timeout_sec=0.05)
-    print('ready', flush=True)
-    while len(got) < want and time.monotonic() < deadline:
-        rclpy.spin_once(node, timeout_sec=0.1)
-    for r in got:
-        f, t = r.wrench.force, r.wrench.torque
-        print(json.dumps({'stamp': r.header.stamp.sec * 10**9 + r.header.stamp.nanosec,
-                          'status': r.status, 'message': r.status_message,
-                          'motion': r.motion, 'stance': list(r.stance_feet),
-                          'wrench': [f.x, f.y, f.z, t.x, t.y, t.z],
-                          'awp': r.awp_margin, 'fwp': r.fwp_margin}))
-    node.destroy_node()
-    rclpy.shutdown()
-""")
-
 
 def _stop(proc) -> None:
     if proc.poll() is None:
@@ -263,7 +233,7 @@ def test_live_node_fed_the_bag_gives_the_wrench_and_the_offline_reports(
         offline, motion_bag, ros_env):
     node = start_node(env=ros_env, robot=None, params_file=find_parameters_file('hyq'),
                       params={'use_imu': True})
-    recorder = subprocess.Popen([sys.executable, '-c', _RECORDER,
+    recorder = subprocess.Popen([sys.executable, '-c', REPORT_RECORDER,
                                  str(motion_bag.joint_states), '120'],
                                 env=ros_env, stdout=subprocess.PIPE, text=True)
     log = ''
