@@ -364,7 +364,7 @@ class FeasibilityEvaluator:
         per change; the results come back in the order of ``states``. Within one state the
         stages are already vectorised across legs and facet candidates; across states the
         per-state geometry (zonotope facets, CWC, intersections) has different shapes and
-        is not batched (the draft ``docs/drafts/planners.md`` has the measurements).
+        is not batched (the README, "For planners", has the measurements).
 
         :param states: the robot states.
         :param fws: also compute each state's FWS (~10 ms per state).
