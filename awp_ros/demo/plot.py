@@ -196,7 +196,7 @@ def plot_margins(series: MarginSeries, path, *, title: str = '') -> Path:
     top = np.nanmax(np.r_[(*shown, [1.0])]) if s.t.size else 1.0
     bottom = min(0.0, np.nanmin(np.r_[(*shown, [0.0])])) if s.t.size else 0.0
     ax.set_ylim(bottom - 0.05 * (top - bottom), top + 0.3 * (top - bottom))
-    ax.set_ylabel('margin [N, N·m]\n(inside the affine hull)')
+    ax.set_ylabel('signed margin [N, N·m]\n(< 0: not in the set)')
     handles, _ = ax.get_legend_handles_labels()
     handles += [Patch(color=STANCE_COLOURS[c], label=STANCE_LABELS[c])
                 for c in sorted(set(count.tolist()), reverse=True)]

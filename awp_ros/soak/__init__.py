@@ -6,6 +6,7 @@ Load tests of awp_node over real DDS: python -m awp_ros.soak.
 - :mod:`result`: SoakResult and its table.
 - :mod:`probe`: a DDS participant of our own (publish, subscribe, wait).
 - :mod:`monitor`: CPU and memory of a process from /proc.
+- :mod:`query_load`: ~/evaluate queries beside a live stream, their effect on latency.
 """
 
-__all__ = ['soak', 'driver', 'result', 'probe', 'monitor']
+__all__ = ['soak', 'driver', 'result', 'probe', 'monitor', 'query_load']
