@@ -22,6 +22,7 @@ from awp_ros.cli.replay import main as replay_main, parse_override
 from awp_ros.gait.bag import write_gait_bag
 from awp_ros.gait.generator import generate_gait
 from awp_ros.gait.params import GaitParams
+from awp_ros.node.launcher import stop_node
 from awp_ros.robot.config import load_config, load_parameters
 from awp_ros.ros.pipeline import Pipeline
 from cases import REPORT_RECORDER
@@ -240,16 +241,6 @@ def test_play_refuses_unknown_message_types(tmp_path, ros_env):
 # -- live ---------------------------------------------------------------------------------------
 
 
-def _stop(proc) -> None:
-    if proc.poll() is None:
-        proc.send_signal(2)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-
-
 def test_play_into_a_running_node_gives_the_offline_reports(replayed_measured, gait_bag,
                                                             tmp_path, ros_env, repo):
     """awp_node (console script) + awp_replay --play + a recorder: three processes."""
@@ -270,8 +261,8 @@ def test_play_into_a_running_node_gives_the_offline_reports(replayed_measured, g
         assert 'published 1763 messages' in play.stderr
         lines, _ = recorder.communicate(timeout=120)
     finally:
-        _stop(recorder)
-        _stop(node)
+        stop_node(recorder)
+        stop_node(node)
     live = [json.loads(line) for line in lines.splitlines() if line.startswith('{')]
     assert len(live) == len(offline)
     for r in live:

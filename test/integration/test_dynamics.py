@@ -219,16 +219,6 @@ def test_offline_replay_gives_the_wrench_of_the_motion(offline, motion_bag):
 # -- live --------------------------------------------------------------------------------------
 
 
-def _stop(proc) -> None:
-    if proc.poll() is None:
-        proc.send_signal(2)
-        try:
-            proc.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-
-
 def test_live_node_fed_the_bag_gives_the_wrench_and_the_offline_reports(
         offline, motion_bag, ros_env):
     node = start_node(env=ros_env, robot=None, params_file=find_parameters_file('hyq'),
@@ -245,7 +235,7 @@ def test_live_node_fed_the_bag_gives_the_wrench_and_the_offline_reports(
         assert play.returncode == 0, play.stderr
         lines, _ = recorder.communicate(timeout=180)
     finally:
-        _stop(recorder)
+        stop_node(recorder)
         log = stop_node(node)
     rows = [json.loads(line) for line in lines.splitlines() if line.startswith('{')]
     live = {r['stamp']: r for r in rows}
