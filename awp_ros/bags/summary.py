@@ -45,11 +45,12 @@ class ReplaySummary:
     invalid: int = 0
     infeasible: int = 0
     fwp_infeasible: int = 0
-    statuses: dict = field(default_factory=dict)
-    margins: dict = field(default_factory=dict)
-    region_margins: dict = field(default_factory=dict)
-    inputs: dict = field(default_factory=dict)
-    outputs: dict = field(default_factory=dict)
+    statuses: dict[str, int] = field(default_factory=dict)
+    margins: dict[str, dict[str, float]] = field(default_factory=dict)
+    region_margins: dict[str, dict[str, float]] = field(default_factory=dict)
+    #: messages read per input role and written per output topic (replays)
+    inputs: dict[str, int] = field(default_factory=dict)
+    outputs: dict[str, int] = field(default_factory=dict)
     wall_s: float = 0.0
     bag_s: float = 0.0
 

@@ -8,7 +8,8 @@ The awp_node process: an rclpy shell over awp_ros.ros.pipeline.
 - :mod:`diagnostics`: counters and the /diagnostics DiagnosticArray.
 - :mod:`launcher`: start and stop awp_node as a process (tests, soak, demo).
 - :mod:`evaluate_service`: the ~/evaluate worker process (queries beside the live stream).
+- :mod:`lifecycle`: rclpy init, spin and shutdown of both processes.
 """
 
 __all__ = ['node', 'parameters', 'input_drain', 'marker_worker', 'diagnostics', 'launcher',
-           'evaluate_service']
+           'evaluate_service', 'lifecycle']

@@ -440,6 +440,8 @@ def main(argv: list[str] | None = None) -> int:
     tune_process()      # one BLAS thread: idle OpenBLAS threads spin on the node's cores
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
+
+    from awp_ros.node.lifecycle import run_node
     # The answers to the node go through a copy of fd 1; fd 1 itself (and sys.stdout) go to
     # stderr, so that nothing a library prints can corrupt the frames.
     stdout = os.fdopen(os.dup(1), 'wb')
@@ -448,25 +450,30 @@ def main(argv: list[str] | None = None) -> int:
     worker = _Worker(sys.stdin.fileno())
     reader = threading.Thread(target=worker.read_updates, args=(stdout,), daemon=True)
     reader.start()
-    rclpy.init(args=[])
-    node = None
-    try:
+
+    def build():
         node = rclpy.create_node(args.node_name, namespace=args.namespace,
                                  start_parameter_services=False)
         node.create_service(Evaluate, args.service, worker.serve)
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        _report(stdout, 'info', f'{args.service} ready (worker pid {os.getpid()})')
-        while rclpy.ok() and not worker.stop.is_set():
-            executor.spin_once(timeout_sec=0.2)
-    except Exception as exc:  # noqa: BLE001 -- reported to the node, which restarts us
+        return node
+
+    def spin(node) -> int:
+        try:
+            executor = SingleThreadedExecutor()
+            executor.add_node(node)
+            _report(stdout, 'info', f'{args.service} ready (worker pid {os.getpid()})')
+            while rclpy.ok() and not worker.stop.is_set():
+                executor.spin_once(timeout_sec=0.2)
+        except Exception as exc:  # noqa: BLE001 -- reported to the node, which restarts us
+            _report(stdout, 'error', f'~/evaluate worker failed: {type(exc).__name__}: {exc}')
+            return 1
+        return 0
+
+    try:
+        return run_node([], build, spin)
+    except Exception as exc:  # noqa: BLE001 -- building the node failed: reported likewise
         _report(stdout, 'error', f'~/evaluate worker failed: {type(exc).__name__}: {exc}')
         return 1
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
 
 
 if __name__ == '__main__':

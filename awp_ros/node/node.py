@@ -72,7 +72,7 @@ from nav_msgs.msg import Odometry
 import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import SubscriptionEventCallbacks
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_policy_name_from_kind, QoSProfile,
                        ReliabilityPolicy)
@@ -83,6 +83,7 @@ from awp_ros.errors import AwpError
 from awp_ros.node.diagnostics import NodeDiagnostics
 from awp_ros.node.evaluate_service import EvaluateService
 from awp_ros.node.input_drain import InputDrain
+from awp_ros.node.lifecycle import run_node
 from awp_ros.node.marker_worker import MarkerWorker
 from awp_ros.node.parameters import NodeParameters
 from awp_ros.robot.parameters import PipelineParams
@@ -459,30 +460,25 @@ def main(args=None) -> int:
                'config/hyq.yaml -p fws_rate_hz:=20.0 -r joint_states:=/robot/joint_states. '
                'Topics and parameters: see the README.')
     parser.parse_args(user)
-    rclpy.init(args=argv)
-    node = None
-    try:
-        node = AwpNode()
-        kind = node.parameters.choice('executor', ('single_threaded', 'events'))
-        if kind == 'events':
-            from rclpy.experimental import EventsExecutor
-            executor = EventsExecutor()
-            executor.add_node(node)
-            freeze_startup_objects()
-            # EventsExecutor.spin() of this rclpy build never runs callbacks; spin_once works.
-            while rclpy.ok():
-                executor.spin_once(timeout_sec=0.1)
-        else:
-            executor = SingleThreadedExecutor()
-            executor.add_node(node)
-            freeze_startup_objects()
-            executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    return run_node(argv, AwpNode, _spin)
+
+
+def _spin(node: AwpNode) -> int:
+    """Spin the node with the executor its parameters name, until shutdown."""
+    kind = node.parameters.choice('executor', ('single_threaded', 'events'))
+    if kind == 'events':
+        from rclpy.experimental import EventsExecutor
+        executor = EventsExecutor()
+        executor.add_node(node)
+        freeze_startup_objects()
+        # EventsExecutor.spin() of this rclpy build never runs callbacks; spin_once works.
+        while rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+    else:
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        freeze_startup_objects()
+        executor.spin()
     return 0
 
 

@@ -11,7 +11,7 @@ knows every key and tells a key of another reader from a typo (:func:`parameter_
 from __future__ import annotations
 
 from collections.abc import Collection, Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 import difflib
 import math
 
@@ -118,35 +118,105 @@ def ros_parameters(params: Mapping) -> dict:
 #: Values of ``motion``: ``auto`` = ``measured`` when the IMU or odometry is on, else
 #: ``quasi_static``.
 MOTIONS = ('auto', 'measured', 'quasi_static')
-#: Values of ``contact_source``: where the stance comes from (see PARAMETER_DOCS).
+#: Values of ``contact_source``: where the stance comes from (see PipelineParams).
 CONTACT_SOURCES = ('topic', 'effort', 'all')
+
+
+def _param(default, doc: str, *, read_only: bool = False):
+    """Return a PipelineParams field: its default, its meaning and whether it is read-only."""
+    return field(default=default, metadata={'doc': doc, 'read_only': read_only})
 
 
 @dataclass(frozen=True)
 class PipelineParams:
-    """The node-only parameters that shape the pipeline's outputs (see PARAMETER_DOCS)."""
+    """The node-only parameters that shape the pipeline's outputs: defaults and meanings."""
 
-    wrench_frame_id: str = 'com_world_aligned'
-    marker_frame_id: str = ''
-    stale_timeout_s: float = 0.5
-    fws_rate_hz: float = 10.0
-    marker_rate_hz: float = 30.0
-    marker_force_scale: float = 0.0005
-    marker_moment_scale: float = 0.002
-    use_imu: bool = False
-    use_joint_velocities: bool = True
-    max_queue_delay_s: float = 0.0
-    use_odometry: bool = False
-    motion: str = 'auto'
-    acceleration_cutoff_hz: float = 100.0
-    use_joint_efforts: bool = True
-    hull_tolerance: float = 3.0
-    contact_source: str = 'topic'
-    contact_force_on_n: float = 20.0
-    contact_force_off_n: float = 10.0
-    contacts_timeout_s: float = 0.0
-    joint_states_timeout_s: float = 0.1
-    ignored_joints: tuple[str, ...] = ()
+    wrench_frame_id: str = _param(
+        'com_world_aligned', 'frame_id of reports and wrench/leg polytopes: '
+        'origin at the CoM, world-aligned axes (REP 103)')
+    marker_frame_id: str = _param(
+        '', "frame of the markers: '' = wrench_frame_id (set it as RViz's fixed "
+        'frame, no TF needed), or the URDF root link (e.g. base_link) to overlay '
+        'the robot model')
+    stale_timeout_s: float = _param(
+        0.5, 'imu/odom older than this w.r.t. the joint-state stamp, or any input '
+        'stamped more than this later than it (clocks that disagree), give a '
+        'STATUS_STALE_INPUT report [s]; 0 disables the check (contacts: '
+        'contacts_timeout_s)')
+    fws_rate_hz: float = _param(
+        10.0, 'rate of the FWS computation (H-rep, directional and Euclidean '
+        'margins) by joint-state stamps [Hz]; 0 = every cycle; a stance change '
+        'forces it')
+    marker_rate_hz: float = _param(
+        30.0, 'marker publication rate by joint-state stamps [Hz]; 0 = no markers')
+    marker_force_scale: float = _param(
+        0.0005, 'scene length per newton of the drawn polytopes and wrench [m/N]')
+    marker_moment_scale: float = _param(
+        0.002, 'scene length per newton-metre of the drawn moment [m/(N.m)]')
+    use_imu: bool = _param(
+        False, 'subscribe to imu (sensor_msgs/Imu, mounting from the URDF frame '
+        'header.frame_id): the base orientation and, with motion measured (auto), '
+        'its angular velocity and specific force (read-only)', read_only=True)
+    use_joint_velocities: bool = _param(
+        True, 'use joint_states velocities (Coriolis terms of the bias torques, '
+        'seed eq. 1)')
+    max_queue_delay_s: float = _param(
+        0.0, 'load shedding: a joint state that waited longer than this in the '
+        'input queue (the node is slower than its input) is answered at once with '
+        'a STATUS_STALE_INPUT report instead of being evaluated, so latency stays '
+        'bounded and the queue never overflows [s]; 0 = evaluate every joint '
+        'state however late')
+    use_odometry: bool = _param(
+        False, 'subscribe to odom (nav_msgs/Odometry): base twist in '
+        'child_frame_id, and the base orientation when there is no IMU '
+        '(read-only)', read_only=True)
+    motion: str = _param(
+        'auto', "what the wrench and leg biases are computed for: 'measured' (the "
+        'motion of the IMU, odometry and differentiated joint velocities: w = [m '
+        "(cdd - g); dL/dt], biases with M qdd + c), 'quasi_static' (no "
+        'accelerations: w = [0, 0, m g, 0, 0, 0] plus, with use_joint_velocities, '
+        "the velocity-product terms) or 'auto' (measured when use_imu or "
+        'use_odometry)')
+    acceleration_cutoff_hz: float = _param(
+        100.0, 'cut-off of the causal 2nd-order Butterworth differentiators of '
+        'the joint velocities and the IMU angular velocity [Hz]; lag sqrt(2) / (2 '
+        'pi f_c) (2.25 ms at 100 Hz)')
+    use_joint_efforts: bool = _param(
+        True, 'use joint_states efforts: measured contact forces, slip margins, '
+        'torque ratios and the external wrench')
+    hull_tolerance: float = _param(
+        3.0, "distance of the wrench from a flat set's affine hull (1-2 stance "
+        'legs) up to which it counts as on the hull [N, N.m]: a measured wrench '
+        'is on the 5D hull of two stance legs only up to its estimation error '
+        '(measured: max 1.6 on the default bag, 2 in the analytic-motion test), '
+        'so 3 by default; 0 = the feasibility tolerance (1e-6)')
+    contact_source: str = _param(
+        'topic', "where the stance comes from: 'topic' (the contacts topic, "
+        "awp_ros_msgs/ContactState), 'effort' (from joint_states efforts: a foot "
+        'is in stance while the normal component n . f of its measured contact '
+        'force f = J^-T (b - tau) is above the thresholds below; needs efforts, '
+        "no contacts topic) or 'all' (every foot in stance, for standing tests; "
+        'no contacts topic) (read-only)', read_only=True)
+    contact_force_on_n: float = _param(
+        20.0, "contact_source 'effort': a swing foot touches down when its "
+        'measured normal force rises above this [N]')
+    contact_force_off_n: float = _param(
+        10.0, "contact_source 'effort': a stance foot lifts off when its measured "
+        'normal force falls below this (<= contact_force_on_n: the hysteresis '
+        'that keeps a foot from chattering) [N]')
+    contacts_timeout_s: float = _param(
+        0.0, 'a contacts message holds until the next one (publishers that '
+        'publish on change); > 0: contacts older than this w.r.t. the joint-state '
+        'stamp give a STATUS_STALE_INPUT report [s]')
+    joint_states_timeout_s: float = _param(
+        0.1, 'joint_states messages may carry subsets of the joints (several '
+        "publishers): each joint's latest value is used, and a joint state is "
+        'evaluated when every model joint has a value stamped at most this long '
+        'before it, else STATUS_STALE_INPUT naming the joints [s]; 0 = any age')
+    ignored_joints: tuple[str, ...] = _param(
+        (), 'joints in joint_states that the model does not have and that are '
+        'ignored silently (wheels, an arm); other such joints are ignored too, '
+        'listed once in /diagnostics')
 
     @property
     def measured_motion(self) -> bool:
@@ -216,72 +286,8 @@ class PipelineParams:
         return cls(**kw)
 
 
-#: Description of every pipeline parameter (used for the node's descriptors and the README).
-PARAMETER_DOCS = {
-    'wrench_frame_id': 'frame_id of reports and wrench/leg polytopes: origin at the CoM, '
-                       'world-aligned axes (REP 103)',
-    'marker_frame_id': "frame of the markers: '' = wrench_frame_id (set it as RViz's fixed "
-                       'frame, no TF needed), or the URDF root link (e.g. base_link) to '
-                       'overlay the robot model',
-    'stale_timeout_s': 'imu/odom older than this w.r.t. the joint-state stamp, or any input '
-                       'stamped more than this later than it (clocks that disagree), give a '
-                       'STATUS_STALE_INPUT report [s]; 0 disables the check (contacts: '
-                       'contacts_timeout_s)',
-    'fws_rate_hz': 'rate of the FWS computation (H-rep, directional and Euclidean margins) '
-                   'by joint-state stamps [Hz]; 0 = every cycle; a stance change forces it',
-    'marker_rate_hz': 'marker publication rate by joint-state stamps [Hz]; 0 = no markers',
-    'marker_force_scale': 'scene length per newton of the drawn polytopes and wrench [m/N]',
-    'marker_moment_scale': 'scene length per newton-metre of the drawn moment [m/(N.m)]',
-    'use_imu': 'subscribe to imu (sensor_msgs/Imu, mounting from the URDF frame '
-               'header.frame_id): the base orientation and, with motion measured (auto), its '
-               'angular velocity and specific force (read-only)',
-    'use_joint_velocities': 'use joint_states velocities (Coriolis terms of the bias '
-                            'torques, seed eq. 1)',
-    'max_queue_delay_s': 'load shedding: a joint state that waited longer than this in the '
-                         'input queue (the node is slower than its input) is answered at once '
-                         'with a STATUS_STALE_INPUT report instead of being evaluated, so '
-                         'latency stays bounded and the queue never overflows [s]; 0 = '
-                         'evaluate every joint state however late',
-    'use_odometry': 'subscribe to odom (nav_msgs/Odometry): base twist in child_frame_id, and '
-                    'the base orientation when there is no IMU (read-only)',
-    'motion': "what the wrench and leg biases are computed for: 'measured' (the motion of "
-              'the IMU, odometry and differentiated joint velocities: w = [m (cdd - g); '
-              "dL/dt], biases with M qdd + c), 'quasi_static' (no accelerations: w = [0, 0, "
-              'm g, 0, 0, 0] plus, with use_joint_velocities, the velocity-product terms) or '
-              "'auto' (measured when use_imu or use_odometry)",
-    'acceleration_cutoff_hz': 'cut-off of the causal 2nd-order Butterworth differentiators of '
-                              'the joint velocities and the IMU angular velocity [Hz]; lag '
-                              'sqrt(2) / (2 pi f_c) (2.25 ms at 100 Hz)',
-    'use_joint_efforts': 'use joint_states efforts: measured contact forces, slip margins, '
-                         'torque ratios and the external wrench',
-    'hull_tolerance': "distance of the wrench from a flat set's affine hull (1-2 stance legs) "
-                      'up to which it counts as on the hull [N, N.m]: a measured wrench is '
-                      'on the 5D hull of two stance legs only up to its estimation error '
-                      '(measured: max 1.6 on the default bag, 2 in the analytic-motion test), '
-                      'so 3 by default; 0 = the feasibility tolerance (1e-6)',
-    'contact_source': "where the stance comes from: 'topic' (the contacts topic, "
-                      "awp_ros_msgs/ContactState), 'effort' (from joint_states efforts: a "
-                      'foot is in stance while the normal component n . f of its measured '
-                      'contact force f = J^-T (b - tau) is above the thresholds below; '
-                      "needs efforts, no contacts topic) or 'all' (every foot in stance, for "
-                      'standing tests; no contacts topic) (read-only)',
-    'contact_force_on_n': "contact_source 'effort': a swing foot touches down when its "
-                          'measured normal force rises above this [N]',
-    'contact_force_off_n': "contact_source 'effort': a stance foot lifts off when its "
-                           'measured normal force falls below this (<= contact_force_on_n: '
-                           'the hysteresis that keeps a foot from chattering) [N]',
-    'contacts_timeout_s': 'a contacts message holds until the next one (publishers that '
-                          'publish on change); > 0: contacts older than this w.r.t. the '
-                          'joint-state stamp give a STATUS_STALE_INPUT report [s]',
-    'joint_states_timeout_s': 'joint_states messages may carry subsets of the joints (several '
-                              "publishers): each joint's latest value is used, and a joint "
-                              'state is evaluated when every model joint has a value stamped '
-                              'at most this long before it, else STATUS_STALE_INPUT naming '
-                              'the joints [s]; 0 = any age',
-    'ignored_joints': 'joints in joint_states that the model does not have and that are '
-                      'ignored silently (wheels, an arm); other such joints are ignored too, '
-                      'listed once in /diagnostics',
-}
+#: Description of every pipeline parameter (the node's descriptors and the README).
+PARAMETER_DOCS = {f.name: f.metadata['doc'] for f in fields(PipelineParams)}
 
 
 def _kind(default) -> str:
@@ -298,12 +304,12 @@ def _kind(default) -> str:
 
 
 #: Read-only pipeline parameters (they decide which topics the node subscribes to).
-READ_ONLY = ('use_imu', 'use_odometry', 'contact_source')
+READ_ONLY = tuple(f.name for f in fields(PipelineParams) if f.metadata['read_only'])
 
 #: The pipeline's keys of the parameters schema (from PipelineParams and PARAMETER_DOCS).
 PIPELINE_KEYS: dict[str, ConfigKey] = {
-    f.name: ConfigKey(_kind(f.default), f.default, PARAMETER_DOCS.get(f.name, ''),
-                      group='pipeline', read_only=f.name in READ_ONLY)
+    f.name: ConfigKey(_kind(f.default), f.default, f.metadata['doc'], group='pipeline',
+                      read_only=f.metadata['read_only'])
     for f in fields(PipelineParams)}
 
 _NODE = {     # name: (default, description, read-only)

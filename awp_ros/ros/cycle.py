@@ -58,15 +58,19 @@ class Cycle:
                    style=MarkerStyle(), reference_point=np.zeros(3), latest_fws=None,
                    pyramid_sides=4)
 
+    def _cached(self, key: str, available: bool, build, *args):
+        """Return ``build(self.header, *args)``, built once; None when not ``available``."""
+        if not available:
+            return None
+        if key not in self._cache:
+            self._cache[key] = build(self.header, *args)
+        return self._cache[key]
+
     def _wrench(self, kind: str) -> WrenchPolytope | None:
         r = self.result
-        if r is None or (kind == 'fws' and not self.fws_computed):
-            return None
-        if kind not in self._cache:
-            self._cache[kind] = wrench_polytope_msg(self.header, kind, r.stance,
-                                                    self._reference_point,
-                                                    getattr(r, kind).polytope)
-        return self._cache[kind]
+        available = r is not None and (kind != 'fws' or self.fws_computed)
+        return self._cached(kind, available, lambda h: wrench_polytope_msg(
+            h, kind, r.stance, self._reference_point, getattr(r, kind).polytope))
 
     def awp(self) -> WrenchPolytope | None:
         """Return the AWP message (None when not evaluated)."""
@@ -88,29 +92,20 @@ class Cycle:
         stance legs) has 2 points, a point (one leg) 1, an empty region none. None when the
         FWS was not computed for this message (the reports carry the latest margin).
         """
-        if self.result is None or not self.fws_computed or self.result.fws is None:
-            return None
-        if 'feasible_region' not in self._cache:
-            self._cache['feasible_region'] = region_polygon_msg(self.header,
-                                                                self.result.feasible_region)
-        return self._cache['feasible_region']
+        r = self.result
+        available = r is not None and self.fws_computed and r.fws is not None
+        return self._cached('feasible_region', available, lambda h: region_polygon_msg(
+            h, r.feasible_region))
 
     def support_region(self) -> PolygonStamped | None:
         """Return the support region (PolygonStamped, as above; None when not evaluated)."""
-        if self.result is None:
-            return None
-        if 'support_region' not in self._cache:
-            self._cache['support_region'] = region_polygon_msg(self.header,
-                                                               self.result.support_region)
-        return self._cache['support_region']
+        r = self.result
+        return self._cached('support_region', r is not None,
+                            lambda h: region_polygon_msg(h, r.support_region))
 
     def leg_polytopes(self) -> LegPolytopes | None:
         """Return the LegPolytopes message (None when not evaluated)."""
-        if self.result is None:
-            return None
-        if 'legs' not in self._cache:
-            self._cache['legs'] = leg_polytopes_msg(self.header, self.result)
-        return self._cache['legs']
+        return self._cached('legs', self.result is not None, leg_polytopes_msg, self.result)
 
     def markers(self) -> MarkerArray | None:
         """Return the MarkerArray when markers are due for this message, else None."""

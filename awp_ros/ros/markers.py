@@ -50,21 +50,20 @@ from awp_ros.wrench.contact_wrench_cone import friction_pyramids
 
 __all__ = ['MarkerStyle', 'build_markers', 'error_markers']
 
-_COLORS = {
-    'force_polytope': (0.20, 0.45, 1.00, 0.30),
-    'friction_polytope': (1.00, 0.25, 0.30, 0.55),
-    'friction_pyramid': (1.00, 0.60, 0.85, 0.18),
-    'fwp_force_slice': (0.20, 0.80, 0.35, 0.25),
-    'wrench': (1.00, 0.55, 0.00, 1.00),
-    'moment': (0.60, 0.30, 0.90, 1.00),
-    'com': (1.00, 1.00, 1.00, 1.00),
-    'positive': (0.20, 0.85, 0.20, 1.00),
-    'negative': (1.00, 0.20, 0.20, 1.00),
-    'unknown': (0.70, 0.70, 0.70, 1.00),
-    'support_region': (0.30, 0.60, 1.00, 0.30),
-    'fwp_region': (1.00, 0.85, 0.20, 0.35),
-    'feasible_region': (0.20, 0.85, 0.35, 0.50),
-}
+
+def _rgba(code: str) -> tuple[float, ...]:
+    """Return the RGBA values in [0, 1] of a colour ``#rrggbbaa``."""
+    return tuple(int(code[i:i + 2], 16) / 255.0 for i in (1, 3, 5, 7))
+
+
+#: Colours of every drawn element (RGBA, written as Foxglove and the web write them).
+_COLORS = {name: _rgba(code) for name, code in {
+    'force_polytope': '#3373ff4c', 'friction_polytope': '#ff404c8c',
+    'friction_pyramid': '#ff99d92e', 'fwp_force_slice': '#33cc5940', 'wrench': '#ff8c00ff',
+    'moment': '#994ce6ff', 'com': '#ffffffff', 'positive': '#33d933ff', 'negative': '#ff3333ff',
+    'unknown': '#b2b2b2ff', 'support_region': '#4c99ff4c', 'fwp_region': '#ffd93359',
+    'feasible_region': '#33d95980',
+}.items()}
 #: Drawing order of the CoM regions (bottom first) and their height steps above the plane.
 _REGION_ORDER = ('support_region', 'fwp_region', 'feasible_region')
 _REGION_STEP = 0.003    # [m]

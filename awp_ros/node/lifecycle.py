@@ -1,0 +1,39 @@
+"""
+The rclpy session of the node's processes: ``awp_node`` and its ``~/evaluate`` worker.
+
+:func:`run_node` initialises rclpy, builds the node, spins it and, however that ends,
+destroys the node and shuts rclpy down, so that each process's ``main`` states only what it
+builds and how it spins.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+__all__ = ['run_node']
+
+
+def run_node(argv: list[str], build: Callable[[], Node], spin: Callable[[Node], int]) -> int:
+    """
+    Run one node in this process and return the exit code.
+
+    :param argv: the command line with its ROS arguments (``rclpy.init(args=argv)``).
+    :param build: returns the node (after rclpy.init).
+    :param spin: spins it until shutdown; returns the exit code (0 after Ctrl-C or an
+        external shutdown).
+    """
+    rclpy.init(args=argv)
+    node = None
+    try:
+        node = build()
+        return spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
