@@ -35,6 +35,8 @@ requirements=(
   'numpy==2.4.6'
   'scipy==1.17.1'
   'highspy==1.16.0'
+  'numba==0.68.1'
+  'llvmlite==0.50.0'
   'rosbags==0.11.9'
   'matplotlib==3.11.2'
   'pyyaml==6.0.4'
@@ -122,6 +124,13 @@ setup_env() {
     quiet_pip install -q --no-deps -e "$here" \
       || fail 'awp_ros' 'pip install -e . failed'
     done_step package
+  fi
+
+  if changed kernels "$(files_digest awp_ros/geometry/kernels.py)" "$(python -c 'import sys; print(sys.version)')"; then
+    say 'compiling the numba kernels (cached on disk: later processes load them)'
+    python -c 'from awp_ros.geometry.kernels import compile_all; compile_all()' \
+      || fail 'kernels' 'compiling awp_ros.geometry.kernels failed'
+    done_step kernels
   fi
   export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
 }

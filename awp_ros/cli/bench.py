@@ -33,6 +33,14 @@ is ``regions_stage_ms``. ``batch_states_per_s``: states per second of
 (per-cycle sets, no FWS), ``loop_states_per_s`` the same by a loop of ``evaluate``.
 ``estimation_ms``: the motion estimation of one joint state as the pipeline runs it with
 ``use_imu`` (:func:`estimation_times`), not included in ``total``.
+
+A third pass follows a stream of close postures, as the node's consecutive joint states are
+(:func:`stream_times`): ``total_stream_ms`` is its per-cycle evaluation (what is reused
+between cycles, reused) and ``fws_per_cycle_ms`` the FWS added to every cycle (what
+``fws_rate_hz: 0`` costs). The baselines: qhull's hull of the AWP's and the FWS's vertex
+sums on ``--qhull-samples`` postures (:func:`qhull_baselines`), ``awp_qhull_ms`` and
+``fws_qhull_ms``, and the ratios ``total_vs_qhull`` (AWP hull / per-cycle ``total``) and
+``fws_vs_qhull`` (FWS hull / ``fws_per_cycle_ms``), measured in the same run.
 """
 
 from __future__ import annotations
@@ -44,6 +52,7 @@ import sys
 import time
 
 import numpy as np
+from scipy.spatial import ConvexHull, QhullError
 
 from awp_ros.errors import AwpError
 from awp_ros.estimation.motion import MotionEstimator
@@ -167,6 +176,79 @@ def _regions_baseline(evaluator: FeasibilityEvaluator, state, result) -> float:
     return 1e3 * (time.perf_counter() - t0)
 
 
+def stream_times(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 0,
+                 spread: float = 0.1, step: float = 0.002,
+                 stance: tuple[str, ...] | None = None, fws: bool = True
+                 ) -> dict[str, np.ndarray]:
+    """
+    Return per-cycle timings [ms] along a stream of postures, as the node evaluates them.
+
+    The postures follow a random walk from the standing posture (each joint moves by a
+    uniform step in ``[-step, step]`` [rad] per cycle, reflected at ``spread``: 2 rad/s at
+    1 kHz), so consecutive states are close, as consecutive joint states are: what the
+    per-cycle evaluation reuses between cycles (the contact wrench cone's facets) is reused.
+    ``stream_total``: ``evaluate(state, fws=False)``; ``stream_fws`` (with ``fws``): the FWS
+    added to every cycle (:meth:`~awp_ros.evaluation.evaluator.FeasibilityEvaluator.add_fws`:
+    H-rep, directional and Euclidean margins, feasible region), what ``fws_rate_hz: 0``
+    costs per cycle.
+    """
+    rng = np.random.default_rng(seed + 1)
+    base = evaluator.standing_state(stance=stance)
+    names = list(base.joint_positions)
+    q0 = np.array([base.joint_positions[n] for n in names])
+    offset = np.zeros_like(q0)
+    out = {'stream_total': np.zeros(samples)}
+    if fws:
+        out['stream_fws'] = np.zeros(samples)
+    for i in range(samples):
+        offset += rng.uniform(-step, step, size=q0.size)
+        offset = np.where(np.abs(offset) > spread, np.sign(offset) * 2 * spread - offset, offset)
+        base.joint_positions = dict(zip(names, (q0 + offset).tolist()))
+        result = evaluator.evaluate(base, fws=False)
+        out['stream_total'][i] = result.timings_ms['total']
+        if fws:
+            t0 = time.perf_counter()
+            evaluator.add_fws(result)
+            out['stream_fws'][i] = 1e3 * (time.perf_counter() - t0)
+    return out
+
+
+def qhull_baselines(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 0,
+                    spread: float = 0.1, stance: tuple[str, ...] | None = None
+                    ) -> dict[str, np.ndarray]:
+    """
+    Return the time [ms] of qhull's hull of the AWP's and the FWS's vertex sums.
+
+    The baseline an exact H-rep is measured against: ``scipy.spatial.ConvexHull`` of all
+    sums of one lifted vertex per leg (8^4 = 4096 points in R^6 for the AWP of four
+    parallelepipeds, about 11^4 for the FWS), on the first ``samples`` random postures of
+    :func:`run_benchmark` (``awp_qhull``, ``fws_qhull``; NaN when qhull fails on the
+    nearly degenerate sums, which it does on the FWS without option Q12).
+    """
+    rng = np.random.default_rng(seed)
+    base = evaluator.standing_state(stance=stance)
+    names = list(base.joint_positions)
+    q0 = np.array([base.joint_positions[n] for n in names])
+    out = {'awp_qhull': np.full(samples, np.nan), 'fws_qhull': np.full(samples, np.nan)}
+    for i, q in enumerate(q0 + rng.uniform(-spread, spread, size=(samples, q0.size))):
+        base.joint_positions = dict(zip(names, q.tolist()))
+        result = evaluator.evaluate(base, fws=False)
+        p = [leg.position for leg in result.legs.values()]
+        for key, polytopes in (('awp', [leg.force_polytope for leg in result.legs.values()]),
+                               ('fws', [leg.friction_polytope for leg in result.legs.values()])):
+            points = np.zeros((1, 6))
+            for pk, Q in zip(p, polytopes):
+                lifted = np.hstack([Q.vertices, np.cross(pk, Q.vertices)])
+                points = (points[:, None, :] + lifted[None, :, :]).reshape(-1, 6)
+            t0 = time.perf_counter()
+            try:
+                ConvexHull(points, qhull_options='Qt Qx Q12')
+            except QhullError:
+                continue
+            out[f'{key}_qhull'][i] = 1e3 * (time.perf_counter() - t0)
+    return out
+
+
 def batch_rates(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 0,
                 spread: float = 0.1, stance: tuple[str, ...] | None = None
                 ) -> tuple[float, float]:
@@ -258,6 +340,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--baseline-samples', type=int, default=20,
                         help='states timed with the iterative-projection baseline of the CoM '
                              'regions (default: 20)')
+    parser.add_argument('--qhull-samples', type=int, default=1,
+                        help='postures on which qhull hulls the AWP and FWS vertex sums, the '
+                             'baselines of the ratios (default: 1; ~4 s and ~20 s each)')
     parser.add_argument('--json-only', action='store_true',
                         help='print only the JSON line')
     return parser
@@ -276,6 +361,11 @@ def main(argv: list[str] | None = None) -> int:
         times = run_benchmark(evaluator, args.samples, seed=args.seed, spread=args.spread,
                               warmup=args.warmup, stance=stance, fws=not args.no_fws,
                               baseline_samples=args.baseline_samples)
+        times.update(stream_times(evaluator, args.samples, seed=args.seed,
+                                  spread=args.spread, stance=stance, fws=not args.no_fws))
+        if args.qhull_samples > 0:
+            times.update(qhull_baselines(evaluator, args.qhull_samples, seed=args.seed,
+                                         spread=args.spread, stance=stance))
     except (ValueError, AwpError) as exc:
         sys.stderr.write(f'{PROG}: error: {" ".join(str(exc).split())}\n')
         return 2
@@ -298,8 +388,11 @@ def main(argv: list[str] | None = None) -> int:
             friction + times['fws'] + times['fws_margin'])), 4)
         summary['fws_query_lp_ms'] = round(float(np.median(friction + times['fws_query_lp'])),
                                            4)
+    summary['total_stream_ms'] = round(median['stream_total'], 4)
+    if 'stream_fws' in times:
+        summary['fws_per_cycle_ms'] = round(median['stream_fws'], 4)
     for s in times:
-        if s not in ('total', 'fws_query_lp'):
+        if s not in ('total', 'fws_query_lp', 'stream_total', 'stream_fws'):
             key = {'fws_margin': 'fws_margin_step', 'regions': 'regions_stage',
                    'regions_fws_cwc': 'regions'}.get(s, s)
             summary[f'{key}_ms'] = round(median[s], 4)
@@ -309,6 +402,14 @@ def main(argv: list[str] | None = None) -> int:
         if not args.json_only:     # a table row: the ratio of the two medians
             sys.stdout.write(f'{"regions_speedup":<20}{summary["regions_speedup"]:>12.1f}  '
                              '(x: iterative projection / exact slices, CoM regions)\n')
+    ratios = [('total_vs_qhull', 'awp_qhull', median['total'], 'per-cycle total'),
+              ('fws_vs_qhull', 'fws_qhull', summary.get('fws_per_cycle_ms'), 'FWS per cycle')]
+    for key, baseline, ours, what in ratios:
+        if baseline in times and ours and np.isfinite(median[baseline]):
+            summary[key] = round(median[baseline] / ours, 1)
+            if not args.json_only:
+                sys.stdout.write(f'{key:<20}{summary[key]:>12.1f}  (x: qhull hull of the '
+                                 f'{baseline[:3].upper()} vertex sums / {what})\n')
     batch, loop = batch_rates(evaluator, args.samples, seed=args.seed, spread=args.spread,
                               stance=stance)
     summary['batch_states_per_s'] = round(batch, 1)

@@ -48,6 +48,7 @@ import numpy as np
 
 from awp_ros.errors import ConfigError, GeometryError, InputError
 from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
+from awp_ros.geometry import kernels
 from awp_ros.geometry.margin import directional_margins, polytope_margin
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.robot.config import load_config, RobotConfig
@@ -90,6 +91,7 @@ class FeasibilityEvaluator:
     def __init__(self, config: RobotConfig | str = 'hyq', *, singular_rtol: float = 1e-9,
                  near_singular_rtol: float = 1e-2, feasibility_tol: float = 1e-6,
                  hull_tol: float | None = None) -> None:
+        kernels.compile_all()       # once per process, before any control cycle
         self.config = config if isinstance(config, RobotConfig) else load_config(config)
         self.model = RobotModel(self.config)
         self.singular_rtol = singular_rtol

@@ -34,6 +34,7 @@ from itertools import combinations
 import numpy as np
 
 from awp_ros.errors import InputError
+from awp_ros.geometry import kernels
 from awp_ros.geometry.linalg import (distinct_columns, orthonormal_span, subset_normals,
                                      subset_tree, SubsetTree)
 from awp_ros.geometry.polytope import Polytope
@@ -80,15 +81,11 @@ def zonotope(center: np.ndarray, generators: np.ndarray, *, with_vertices: bool 
     g = G if full else U.T @ G
     # Eq. (1): a normal per valid subset (either sign), eq. (3): one per incidence set.
     subsets, tree = _combinations(G.shape[1], r - 1)
-    subsets = subsets if with_vertices else None
-    a, valid = subset_normals(g / norms, tree, rank_tol=rank_tol, unit=True)  # (k, r)
-    if not np.all(valid):
-        a, subsets = a[valid], subsets if subsets is None else subsets[valid]
-    ag = np.abs(g.T @ a.T)                                       # (m, k): |a . g_j|
-    h = np.sum(ag, axis=0)                                       # eq. (2), minus a . c
-    first = distinct_columns(ag <= incidence_tol * norms[:, None], own=r - 1)
-    if first.shape[0] < a.shape[0]:
-        a, h, subsets = a[first], h[first], subsets if subsets is None else subsets[first]
+    if kernels.ENABLED and not with_vertices and r >= 2 and G.shape[1] <= kernels.MAX_BITS:
+        a, h = kernels.zonotope_facets(g, norms, subsets, rank_tol, incidence_tol)
+    else:
+        a, h, subsets = _facets(g, norms, subsets, tree, r, rank_tol, incidence_tol,
+                                with_vertices)
     A1 = a if full else a @ U.T
     ac = A1 @ c
     A = np.concatenate([A1, -A1])
@@ -103,6 +100,27 @@ def zonotope(center: np.ndarray, generators: np.ndarray, *, with_vertices: bool 
         V = c + _vertex_signs(A_r @ g, g, in_facet, incidence_tol, A_r,
                               np.concatenate([h, h])) @ G.T
     return Polytope(r, V, A, b, c, U, meta)
+
+
+def _facets(g: np.ndarray, norms: np.ndarray, subsets: np.ndarray, tree: SubsetTree, r: int,
+            rank_tol: float, incidence_tol: float, with_vertices: bool
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """
+    Return the unit normals ``a``, supports ``h`` (minus ``a . c``) and subsets of the facets.
+
+    Eqs. (1-3) in numpy: the reference of :func:`awp_ros.geometry.kernels.zonotope_facets`
+    and the code that also keeps each facet's subset (for the vertices).
+    """
+    subsets = subsets if with_vertices else None
+    a, valid = subset_normals(g / norms, tree, rank_tol=rank_tol, unit=True)  # (k, r)
+    if not np.all(valid):
+        a, subsets = a[valid], subsets if subsets is None else subsets[valid]
+    ag = np.abs(g.T @ a.T)                                       # (m, k): |a . g_j|
+    h = np.sum(ag, axis=0)                                       # eq. (2), minus a . c
+    first = distinct_columns(ag <= incidence_tol * norms[:, None], own=r - 1)
+    if first.shape[0] < a.shape[0]:
+        a, h, subsets = a[first], h[first], subsets if subsets is None else subsets[first]
+    return a, h, subsets
 
 
 def zonotope_support(center: np.ndarray, generators: np.ndarray,

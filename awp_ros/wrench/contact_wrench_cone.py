@@ -35,10 +35,12 @@ from __future__ import annotations
 
 from functools import lru_cache
 from itertools import product
+import threading
 
 import numpy as np
 
 from awp_ros.errors import InputError
+from awp_ros.geometry import kernels
 from awp_ros.geometry.linalg import (cross3, distinct_columns, orthonormal_span,
                                      subset_cross_products, subset_tree, SubsetTree, workspace)
 from awp_ros.geometry.polytope import Polytope
@@ -194,6 +196,46 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
     r = U.shape[1]
     rh = lifted if r == 6 else lifted @ U                               # (K N, r)
     subsets, tree = _candidates(K, sides, r, tuple(bool(m == 0.0) for m in mu))
+    if kernels.ENABLED and r >= 2 and rh.shape[0] <= kernels.MAX_BITS:
+        A = _kernel_facets(rh, subsets, (K, sides, r, rays.tobytes()), side_tol, rank_tol)
+    else:
+        A = _facets(rh, tree, r, side_tol, rank_tol)
+    if r < 6:
+        A = A @ U.T
+    return Polytope(r, np.zeros((0, 6)), A, np.zeros(A.shape[0]), origin, U, meta)
+
+
+def _kernel_facets(rh: np.ndarray, subsets: np.ndarray, key: tuple, side_tol: float,
+                   rank_tol: float) -> np.ndarray:
+    """
+    Return the facets by the compiled kernels, reusing the last cycle's when still valid.
+
+    Between control cycles the feet move little relative to the CoM and the facets keep
+    their rays: :func:`awp_ros.geometry.kernels.cone_recheck` verifies the previous facets
+    on the new rays (same incidences, every other ray strictly inside) and only when that
+    fails are all candidates searched again. ``key``: what fixes the candidates and the
+    pyramids (stance count, sides, dimension, the unlifted rays). One entry per thread.
+    """
+    last = getattr(_LAST, 'facets', None)
+    if last is not None and last[0] == key:
+        A = kernels.cone_recheck(rh, last[1], last[2], side_tol, rank_tol)
+        if A is not None:
+            return A
+    A, spans, masks = kernels.cone_facets(rh, subsets, side_tol, rank_tol)
+    _LAST.facets = (key, spans, masks)
+    return A
+
+
+_LAST = threading.local()
+
+
+def _facets(rh: np.ndarray, tree: SubsetTree, r: int, side_tol: float,
+            rank_tol: float) -> np.ndarray:
+    """
+    Return the unit outward facet normals (hull coordinates) from the candidate subsets.
+
+    Eq. (4) in numpy, the reference of :func:`awp_ros.geometry.kernels.cone_facets`.
+    """
     a = subset_cross_products(rh.T, tree, unit=True)           # (m, r), |a| = volume
     vol = np.sqrt(np.square(a) @ np.ones(r))
     # Side test of the unit normal a / |a|, done on a with the tolerance scaled by the
@@ -205,10 +247,7 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
     A = a[keep] * (np.where(below[keep], 1.0, -1.0) / vol[keep])[:, None]
     # One row per facet: a facet is determined by the rays on it (its incidence).
     tight = np.abs(s[:, keep]) <= slack[keep]
-    A = A[distinct_columns(tight, own=r - 1)]
-    if r < 6:
-        A = A @ U.T
-    return Polytope(r, np.zeros((0, 6)), A, np.zeros(A.shape[0]), origin, U, meta)
+    return A[distinct_columns(tight, own=r - 1)]
 
 
 @lru_cache(maxsize=256)

@@ -51,6 +51,7 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 from awp_ros.errors import GeometryError
+from awp_ros.geometry import kernels
 from awp_ros.geometry.linalg import orthonormal_span
 from awp_ros.geometry.polytope import Polytope
 
@@ -76,6 +77,8 @@ def parallelepipeds(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray,
         ``sigma_ratio`` (K,) the smallest over the largest singular value of J. Legs with
         ``sigma_ratio <= singular_rtol`` get NaNs: use :func:`force_polytope` for them.
     """
+    if kernels.ENABLED:     # compiled, one call (this code is its reference)
+        return kernels.parallelepipeds(J, bias, tau_min, tau_max, singular_rtol)
     J = np.asarray(J, dtype=float)
     h = 0.5 * (tau_max - tau_min)
     mid = 0.5 * (tau_max + tau_min)

@@ -1,0 +1,177 @@
+"""The compiled kernels against their numpy reference and against the definitions."""
+
+from itertools import combinations
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull
+
+from awp_ros.geometry import kernels
+from awp_ros.geometry.linalg import subset_cross_products, subset_tree
+from awp_ros.geometry.zonotope import _combinations, _facets as zonotope_reference, zonotope
+from awp_ros.wrench import contact_wrench_cone as cwc_module
+from awp_ros.wrench.contact_wrench_cone import (_cached_rays, _candidates, contact_wrench_cone,
+                                                lift_rays)
+
+pytestmark = pytest.mark.skipif(not kernels.ENABLED, reason='numba kernels disabled')
+
+
+@pytest.mark.parametrize('d', [2, 3, 4, 5, 6])
+def test_cross_products_equal_the_numpy_reference_and_are_orthogonal(d):
+    rng = np.random.default_rng(d)
+    V = rng.normal(size=(d, d + 4))
+    S = np.array(list(combinations(range(d + 4), d - 1)), dtype=np.int64)
+    n = kernels.cross_products(V, S)
+    ref = subset_cross_products(V / np.linalg.norm(V, axis=0), subset_tree(S), unit=True)
+    scaled = kernels.cross_products(V / np.linalg.norm(V, axis=0), S)
+    np.testing.assert_allclose(scaled, ref, atol=1e-13)
+    # the definition: n_i = (-1)^i det V_{-i, S}, orthogonal to each vector of the subset
+    for s in range(0, len(S), max(1, len(S) // 7)):
+        M = V[:, S[s]]
+        det = [(-1) ** i * np.linalg.det(np.delete(M, i, axis=0)) for i in range(d)]
+        np.testing.assert_allclose(n[s], det, atol=1e-10)
+        np.testing.assert_allclose(M.T @ n[s], 0.0, atol=1e-10)
+
+
+def _awp_generators(rng, K=4):
+    """Lifted parallelepiped generators of K legs: the AWP's structure (shared 5D spans)."""
+    p = rng.normal(size=(K, 3)) * 0.3
+    p[:, 2] = -0.5 + 0.02 * rng.normal(size=K)
+    cols = []
+    for k in range(K):
+        for u in rng.normal(size=(3, 3)) * 100.0:
+            cols.append(np.concatenate([u, np.cross(p[k], u)]))
+    return np.array(cols).T
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_zonotope_facets_equal_the_numpy_reference(seed):
+    rng = np.random.default_rng(seed)
+    G = _awp_generators(rng) if seed % 2 else rng.normal(size=(6, 9))
+    if seed == 4:                       # parallel and repeated generators
+        G = np.concatenate([G, 2.0 * G[:, :2]], axis=1)
+    norms = np.linalg.norm(G, axis=0)
+    subsets, tree = _combinations(G.shape[1], 5)
+    a, h = kernels.zonotope_facets(G, norms, subsets, 1e-9, 1e-9)
+    a_ref, h_ref, _ = zonotope_reference(G, norms, subsets, tree, 6, 1e-9, 1e-9, False)
+    assert a.shape == a_ref.shape
+    np.testing.assert_allclose(a, a_ref, atol=1e-12)
+    np.testing.assert_allclose(h, h_ref, rtol=1e-12, atol=1e-9)
+
+
+def test_zonotope_h_rep_matches_qhull_of_its_vertices():
+    rng = np.random.default_rng(7)
+    G = _awp_generators(rng, K=2)[:, :5]
+    G = np.concatenate([G, rng.normal(size=(6, 2)) * 50.0], axis=1)      # 7 in R^6
+    c = rng.normal(size=6)
+    Z = zonotope(c, G)
+    signs = np.array(np.meshgrid(*[[-1.0, 1.0]] * G.shape[1])).reshape(G.shape[1], -1)
+    hull = ConvexHull((c[:, None] + G @ signs).T)
+    # every qhull facet is a row of Z (same unit normal and offset), and no extra rows
+    eq = hull.equations / np.linalg.norm(hull.equations[:, :6], axis=1)[:, None]
+    for row in np.unique(np.round(eq, 6), axis=0):
+        d = np.abs(Z.A - row[:6]).max(axis=1) + np.abs(Z.b + row[6]) / max(1.0, abs(row[6]))
+        assert d.min() < 1e-5
+    assert Z.A.shape[0] == np.unique(np.round(eq, 6), axis=0).shape[0]
+
+
+def _cwc_rays(rng, K=4, sides=4, tilt=0.0):
+    n = np.tile([0.0, 0.0, 1.0], (K, 1)) + tilt * rng.normal(size=(K, 3))
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    mu = rng.uniform(0.3, 1.0, size=K)
+    p = rng.normal(size=(K, 3)) * 0.3
+    p[:, 2] = -0.5
+    return p, n, mu
+
+
+@pytest.mark.parametrize('seed,K,sides,tilt', [(0, 4, 4, 0.0), (1, 4, 4, 0.2), (2, 3, 6, 0.1),
+                                               (3, 4, 3, 0.0), (4, 2, 4, 0.0)])
+def test_cone_facets_equal_the_numpy_reference(seed, K, sides, tilt):
+    rng = np.random.default_rng(seed)
+    p, n, mu = _cwc_rays(rng, K, sides, tilt)
+    rays = _cached_rays(np.ascontiguousarray(n).tobytes(), mu.tobytes(), sides)
+    lifted = lift_rays(p, rays).reshape(K * sides, 6)
+    lifted /= np.linalg.norm(lifted, axis=1)[:, None]
+    r = np.linalg.matrix_rank(lifted)
+    if r < 6:
+        U = np.linalg.svd(lifted)[2][:r].T
+        lifted = lifted @ U
+    subsets, tree = _candidates(K, sides, r, (False,) * K)
+    A, spans, masks = kernels.cone_facets(lifted, subsets, 1e-9, 1e-9)
+    ref = cwc_module._facets(lifted, tree, r, 1e-9, 1e-9)
+    assert A.shape == ref.shape and A.shape[0] > 0
+    np.testing.assert_allclose(A, ref, atol=1e-12)
+    # the certificate: spans lie on their facets, masks are exactly the rays on them
+    assert np.all(np.abs(lifted @ A.T) <= 1e-9 + (lifted @ A.T <= 1e-9) * np.inf)
+    for k in range(A.shape[0]):
+        on = np.flatnonzero(np.abs(lifted @ A[k]) <= 1e-9)
+        assert set(spans[k]) <= set(on.tolist())
+        assert masks[k] == sum(1 << int(j) for j in on)
+
+
+def _same_rows(A, B, tol=1e-9):
+    """Return whether A and B hold the same rows (any order) up to ``tol``."""
+    D = np.abs(A[:, None, :] - B[None, :, :]).max(axis=2)
+    return A.shape == B.shape and D.min(axis=1).max() <= tol and D.min(axis=0).max() <= tol
+
+
+def test_cone_recheck_equals_full_computation_along_a_random_walk():
+    """The reused facets equal a full search at every step; structure changes are caught."""
+    rng = np.random.default_rng(11)
+    p, n, mu = _cwc_rays(rng)
+    reused = rebuilt = 0
+    last = None
+    for step in range(600):
+        p = p + 0.004 * rng.normal(size=p.shape)
+        p[:, 2] = np.clip(p[:, 2], -0.7, -0.3)
+        rays = _cached_rays(np.ascontiguousarray(n).tobytes(), mu.tobytes(), 4)
+        lifted = lift_rays(p, rays).reshape(16, 6)
+        lifted /= np.linalg.norm(lifted, axis=1)[:, None]
+        subsets, _ = _candidates(4, 4, 6, (False,) * 4)
+        full, spans, masks = kernels.cone_facets(lifted, subsets, 1e-9, 1e-9)
+        if last is not None:
+            again = kernels.cone_recheck(lifted, last[1], last[2], 1e-9, 1e-9)
+            if again is None:
+                rebuilt += 1
+            else:
+                reused += 1
+                assert again.shape == full.shape
+                assert _same_rows(again, full)
+        last = (full, spans, masks)
+    assert reused > 400 and rebuilt > 0       # mostly reused, and changes were detected
+
+
+def test_contact_wrench_cone_with_reuse_equals_the_numpy_code_on_a_walk():
+    rng = np.random.default_rng(3)
+    p, n, mu = _cwc_rays(rng, tilt=0.1)
+    for _ in range(200):
+        p = p + 0.01 * rng.normal(size=p.shape)
+        fast = contact_wrench_cone(p, n, mu, 4)
+        kernels.ENABLED = False
+        try:
+            slow = contact_wrench_cone(p, n, mu, 4)
+        finally:
+            kernels.ENABLED = True
+        assert fast.A.shape == slow.A.shape
+        assert _same_rows(fast.A, slow.A)
+
+
+def test_parallelepipeds_equal_the_numpy_reference():
+    from awp_ros.wrench.force_polytope import parallelepipeds
+    rng = np.random.default_rng(5)
+    J = rng.normal(size=(5, 3, 3)) * 0.3
+    J[3] = np.outer(J[3][:, 0], [1.0, 2.0, 0.5])              # singular: NaNs in both
+    bias = rng.normal(size=(5, 3)) * 10.0
+    lo, hi = -rng.uniform(20, 80, size=(5, 3)), rng.uniform(20, 80, size=(5, 3))
+    fast = parallelepipeds(J, bias, lo, hi, singular_rtol=1e-9)
+    kernels.ENABLED = False
+    try:
+        ref = parallelepipeds(J, bias, lo, hi, singular_rtol=1e-9)
+    finally:
+        kernels.ENABLED = True
+    for key in ref:
+        np.testing.assert_allclose(fast[key], ref[key], rtol=1e-10, atol=1e-9, err_msg=key)
+    # the definition: every vertex maps to torques at the limits, tau = bias - J^T f
+    for k in (0, 1, 2, 4):
+        tau = bias[k] - fast['vertices'][k] @ J[k]
+        assert np.all((np.abs(tau - lo[k]) < 1e-6) | (np.abs(tau - hi[k]) < 1e-6))
