@@ -249,6 +249,60 @@ def qhull_baselines(evaluator: FeasibilityEvaluator, samples: int, *, seed: int 
     return out
 
 
+def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: int = 0,
+                  spread: float = 0.1, repeats: int = 6) -> dict[str, tuple[float, float]]:
+    """
+    Return ``step -> (numpy ms, kernel ms)``: the compiled kernels against their reference.
+
+    Over ``samples`` random postures (all feet in stance), each step runs on every posture
+    with :data:`awp_ros.geometry.kernels.ENABLED` off, then on, ``repeats`` times interleaved
+    in this process (medians): the force parallelepipeds, the AWP, the contact wrench cone
+    with new feet every call (its facets searched) and along a stream (the feet moving 10 um
+    per call: the last facets verified and reused).
+    """
+    from awp_ros.geometry import kernels
+    from awp_ros.wrench import contact_wrench_cone as cwc
+    from awp_ros.wrench.force_polytope import parallelepipeds
+    from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope
+
+    rng = np.random.default_rng(seed)
+    base = evaluator.standing_state()
+    names = list(base.joint_positions)
+    q0 = np.array([base.joint_positions[n] for n in names])
+    feet = tuple(evaluator.feet)
+    lo, hi = evaluator._limits(feet)
+    normals = np.tile(evaluator.config.unit_normal, (len(feet), 1))
+    mus = np.full(len(feet), evaluator.config.friction_coefficient)
+    cases = []
+    for q in q0 + rng.uniform(-spread, spread, size=(samples, q0.size)):
+        kin = evaluator.model.kinematics(evaluator.model.joint_vector(dict(zip(names, q))), feet)
+        pp = parallelepipeds(np.array(kin.J), np.array(kin.bias), lo, hi)
+        cases.append((kin.p_foot__com, np.array(kin.J), np.array(kin.bias), pp['center'],
+                      pp['generators']))
+    steps = {
+        'force parallelepipeds': lambda c, i: parallelepipeds(c[1], c[2], lo, hi),
+        'AWP zonotope': lambda c, i: actuation_wrench_polytope(c[0], c[3], c[4]),
+        'CWC, new feet every call': lambda c, i: cwc.contact_wrench_cone(c[0], normals, mus),
+        'CWC along a stream': lambda c, i: cwc.contact_wrench_cone(cases[0][0] + 1e-5 * i,
+                                                                   normals, mus),
+    }
+    times = {name: ([], []) for name in steps}
+    enabled = kernels.ENABLED
+    try:
+        for _ in range(repeats):
+            for on in (False, True):
+                kernels.ENABLED = on and enabled
+                for name, step in steps.items():
+                    cwc.reset_reuse()
+                    t0 = time.perf_counter()
+                    for i, c in enumerate(cases):
+                        step(c, i)
+                    times[name][on].append(1e3 * (time.perf_counter() - t0) / len(cases))
+    finally:
+        kernels.ENABLED = enabled
+    return {name: (float(np.median(a)), float(np.median(b))) for name, (a, b) in times.items()}
+
+
 def batch_rates(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 0,
                 spread: float = 0.1, stance: tuple[str, ...] | None = None
                 ) -> tuple[float, float]:
@@ -343,6 +397,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--qhull-samples', type=int, default=1,
                         help='postures on which qhull hulls the AWP and FWS vertex sums, the '
                              'baselines of the ratios (default: 1; ~4 s and ~20 s each)')
+    parser.add_argument('--kernels', action='store_true',
+                        help='also time the compiled kernels against their numpy reference, '
+                             'interleaved (JSON key kernel_ratios)')
     parser.add_argument('--json-only', action='store_true',
                         help='print only the JSON line')
     return parser
@@ -410,6 +467,13 @@ def main(argv: list[str] | None = None) -> int:
             if not args.json_only:
                 sys.stdout.write(f'{key:<20}{summary[key]:>12.1f}  (x: qhull hull of the '
                                  f'{baseline[:3].upper()} vertex sums / {what})\n')
+    if args.kernels:
+        pairs = kernel_ratios(evaluator, seed=args.seed, spread=args.spread)
+        summary['kernel_ratios'] = {k: round(a / b, 2) for k, (a, b) in pairs.items()}
+        if not args.json_only:
+            for name, (a, b) in pairs.items():
+                sys.stdout.write(f'kernel {name:<26} numpy {a:.4f} ms, kernel {b:.4f} ms: '
+                                 f'{a / b:.2f}x\n')
     batch, loop = batch_rates(evaluator, args.samples, seed=args.seed, spread=args.spread,
                               stance=stance)
     summary['batch_states_per_s'] = round(batch, 1)

@@ -11,7 +11,8 @@ Polytope geometry, ROS-free: H/V-representations, exact Minkowski-sum facets, ma
 - :mod:`lp`: the Chebyshev-ball LP (the one LP helper).
 - :mod:`mesh`: triangle meshes and force slices of polytopes, for drawing.
 - :mod:`iterative_projection`: Bretl & Lall iterative projection (a baseline).
+- :mod:`kernels`: compiled (numba) kernels of the per-cycle sets, numpy code their reference.
 """
 
 __all__ = ['polytope', 'linalg', 'exterior', 'face_lattice', 'zonotope', 'minkowski_facets',
-           'margin', 'lp', 'mesh', 'iterative_projection']
+           'margin', 'lp', 'mesh', 'iterative_projection', 'kernels']

@@ -10,12 +10,12 @@ missing or ``AWP_ROS_KERNELS=numpy`` is set.
 
 Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
 
-* :func:`cross_products`: the generalised cross products of index subsets of one set of
-  vectors, ``(n_s)_i = (-1)^i det V_{-i, S_s}``, the minors of each prefix by Laplace
+* :func:`cross_products`: the generalised cross products of 5-subsets of one set of
+  vectors of R^6, ``(n_s)_i = (-1)^i det V_{-i, S_s}``, the minors of each prefix by Laplace
   expansion along its last vector, reused by the next subset that shares the prefix
   (subsets in lexicographic order share long prefixes);
 * :func:`zonotope_facets`: the facet normals and support values of a full-dimensional
-  zonotope from all its ``(r - 1)``-subsets of generators, one normal per incidence set;
+  zonotope of R^6 from all its 5-subsets of generators, one normal per incidence set;
 * :func:`cone_facets`: the facets of the cone spanned by unit rays, from candidate subsets:
   the side test stops at the first ray on each side, one normal per incidence set;
   :func:`cone_recheck` verifies the last cycle's facets on new rays (the contact wrench
@@ -26,8 +26,10 @@ Measured beside the numpy code in one run (``AWP_ROS_KERNELS=numpy awp_bench`` a
 ``awp_bench``, the README's speed section): 2.5x on the force polytopes, 1.3x on the AWP, and
 the contact wrench cone 6x when its facets are reused.
 
-Incidence sets are bit masks, so these kernels take at most 63 generators or rays; callers
-use the numpy code beyond. Compiled code is cached on disk (numba ``cache=True``);
+The kernels work in R^6 (full-dimensional sets: three or more stance legs), with the wedge
+tables as constants so that the compiler unrolls them (2-3x over tables passed at run time);
+incidence sets are bit masks, so they take at most 63 generators or rays. Callers use the
+numpy code for flat sets and beyond. Compiled code is cached on disk (numba ``cache=True``);
 ``python -m awp_ros.geometry.kernels`` compiles it once (the bootstrap does).
 """
 
@@ -102,32 +104,17 @@ def wedge_tables(d: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     return src, row, sign, size
 
 
-@_jit(inline=True)
-def _subset_normal(V, subsets, s, prev, W, src, row, sign, size, out):
-    """Put the cross product of subset ``s`` in ``out`` (shared prefixes from ``prev``)."""
-    d = V.shape[0]
-    w = subsets.shape[1]
-    start = 0
-    while start < w and subsets[s, start] == prev[start]:
-        start += 1
-    for k in range(start, w):
-        j = subsets[s, k]
-        prev[k] = j
-        if k == 0:
-            for i in range(d):
-                W[0, i] = V[i, j]
-        else:
-            for o in range(size[k + 1]):
-                acc = 0.0
-                for t in range(k + 1):
-                    acc += sign[k, o, t] * W[k - 1, src[k, o, t]] * V[row[k, o, t], j]
-                W[k, o] = acc
-    for i in range(d):         # n_i = (-1)^i W_{[d] \ {i}}, that subset being d - 1 - i
-        value = W[w - 1, d - 1 - i]
-        out[i] = value if i % 2 == 0 else -value
-
-
 _SRC6, _ROW6, _SIGN6, _ = wedge_tables(6)
+
+
+@_jit(inline=True)
+def _wedge6(W, V, j, k, outputs):
+    """Level ``k`` of the R^6 tables into ``W[k]`` (``outputs = C(6, k + 1)``, constant)."""
+    for o in range(outputs):
+        acc = 0.0
+        for t in range(k + 1):
+            acc += _SIGN6[k, o, t] * W[k - 1, _SRC6[k, o, t]] * V[_ROW6[k, o, t], j]
+        W[k, o] = acc
 
 
 @_jit(inline=True)
@@ -143,63 +130,46 @@ def _subset_normal6(V, subsets, s, prev, W, out):
             for i in range(6):
                 W[0, i] = V[i, j]
         elif k == 1:
-            for o in range(15):
-                acc = 0.0
-                for t in range(2):
-                    acc += _SIGN6[1, o, t] * W[0, _SRC6[1, o, t]] * V[_ROW6[1, o, t], j]
-                W[1, o] = acc
+            _wedge6(W, V, j, 1, 15)
         elif k == 2:
-            for o in range(20):
-                acc = 0.0
-                for t in range(3):
-                    acc += _SIGN6[2, o, t] * W[1, _SRC6[2, o, t]] * V[_ROW6[2, o, t], j]
-                W[2, o] = acc
+            _wedge6(W, V, j, 2, 20)
         elif k == 3:
-            for o in range(15):
-                acc = 0.0
-                for t in range(4):
-                    acc += _SIGN6[3, o, t] * W[2, _SRC6[3, o, t]] * V[_ROW6[3, o, t], j]
-                W[3, o] = acc
+            _wedge6(W, V, j, 3, 15)
         else:
-            for i in range(6):
-                o = 5 - i
-                acc = 0.0
-                for t in range(5):
-                    acc += _SIGN6[4, o, t] * W[3, _SRC6[4, o, t]] * V[_ROW6[4, o, t], j]
-                out[i] = acc if i % 2 == 0 else -acc
+            _wedge6(W, V, j, 4, 6)
+            for i in range(6):           # n_i = (-1)^i W_{[6] \ {i}}, that subset 5 - i
+                out[i] = W[4, 5 - i] if i % 2 == 0 else -W[4, 5 - i]
+
+
+@_jit(inline=True)
+def _scratch():
+    """Return the prefix minors (5, 20), the last subset (5,) and a normal (6,) buffers."""
+    return np.empty((5, 20)), np.full(5, -1, dtype=np.int64), np.empty(6)
 
 
 @_jit
-def _cross_products(V, subsets, src, row, sign, size):
-    d = V.shape[0]
-    m, w = subsets.shape
-    out = np.empty((m, d))
-    W = np.empty((max(w, 1), src.shape[1]))
-    prev = np.full(max(w, 1), -1, dtype=np.int64)
-    if d == 6:
-        for s in range(m):
-            _subset_normal6(V, subsets, s, prev, W, out[s])
-    else:
-        for s in range(m):
-            _subset_normal(V, subsets, s, prev, W, src, row, sign, size, out[s])
+def _cross_products(V, subsets):
+    m = subsets.shape[0]
+    out = np.empty((m, 6))
+    W, prev, _ = _scratch()
+    for s in range(m):
+        _subset_normal6(V, subsets, s, prev, W, out[s])
     return out
 
 
 def cross_products(V: np.ndarray, subsets: np.ndarray) -> np.ndarray:
     r"""
-    Return the generalised cross products of subsets of the columns of ``V``, eq. (1).
+    Return the generalised cross products of 5-subsets of the columns of ``V`` (6, N).
 
-    .. math:: (n_s)_i = (-1)^i \det V_{-i, S_s}, \quad |S_s| = d - 1
+    .. math:: (n_s)_i = (-1)^i \det V_{-i, S_s}, \quad |S_s| = 5
 
-    :param V: ``(d, N)``, the vectors as columns (not rescaled; d >= 2).
-    :param subsets: integer ``(m, d - 1)`` column indices; rows sharing their first
-        entries with the previous row reuse its minors.
-    :return: ``(m, d)``, ``|n_s|`` the volume the subset spans.
+    :param V: ``(6, N)``, the vectors as columns (not rescaled).
+    :param subsets: integer ``(m, 5)`` column indices; rows sharing their first entries with
+        the previous row reuse its minors.
+    :return: ``(m, 6)``, ``|n_s|`` the volume the subset spans.
     """
-    V = np.ascontiguousarray(V, dtype=float)
-    d = V.shape[0]
-    return _cross_products(V, np.ascontiguousarray(subsets, dtype=np.int64),
-                           *wedge_tables(d))
+    return _cross_products(np.ascontiguousarray(V, dtype=float),
+                           np.ascontiguousarray(subsets, dtype=np.int64))
 
 
 @_jit(inline=True)
@@ -224,12 +194,9 @@ def _norm2(n):
 
 
 @_jit(inline=True)
-def _zonotope_row(n, gT, norms, rank_tol, incidence_tol, a, h, masks, multi, kept):
-    """Store the facet of cross product ``n`` at row ``kept`` if valid; return the count."""
+def _zonotope_row(n, vol, gT, norms, incidence_tol, a, h, masks, multi, kept):
+    """Store the facet of cross product ``n`` (length ``vol``) at row ``kept``; the count."""
     m, r = gT.shape
-    vol = np.sqrt(_norm2(n))
-    if not vol > rank_tol:
-        return kept
     inv = 1.0 / vol
     total = 0.0
     mask = 0
@@ -249,7 +216,7 @@ def _zonotope_row(n, gT, norms, rank_tol, incidence_tol, a, h, masks, multi, kep
 
 
 @_jit
-def _zonotope_facets(g, norms, subsets, rank_tol, incidence_tol, src, row, sign, size):
+def _zonotope_facets(g, norms, subsets, rank_tol, incidence_tol):
     r, m = g.shape
     n_sub = subsets.shape[0]
     a = np.empty((n_sub, r))
@@ -261,18 +228,13 @@ def _zonotope_facets(g, norms, subsets, rank_tol, incidence_tol, src, row, sign,
         for j in range(m):
             U[i, j] = g[i, j] / norms[j]
     gT = np.ascontiguousarray(g.T)
-    W = np.empty((max(r - 1, 1), src.shape[1]))
-    prev = np.full(max(r - 1, 1), -1, dtype=np.int64)
-    n = np.empty(r)
+    normals = _cross_products(U, subsets)            # eq. (1) of every subset, then its row
     kept = 0
-    if r == 6:
-        for s in range(n_sub):
-            _subset_normal6(U, subsets, s, prev, W, n)
-            kept = _zonotope_row(n, gT, norms, rank_tol, incidence_tol, a, h, masks, multi, kept)
-    else:
-        for s in range(n_sub):
-            _subset_normal(U, subsets, s, prev, W, src, row, sign, size, n)
-            kept = _zonotope_row(n, gT, norms, rank_tol, incidence_tol, a, h, masks, multi, kept)
+    for s in range(n_sub):
+        vol = np.sqrt(_norm2(normals[s]))
+        if vol > rank_tol:
+            kept = _zonotope_row(normals[s], vol, gT, norms, incidence_tol, a, h, masks, multi,
+                                 kept)
     keep = _first_of_each(masks[:kept], multi[:kept])
     return a[:kept][keep], h[:kept][keep]
 
@@ -294,10 +256,10 @@ def _first_of_each(masks, multi):
 def zonotope_facets(g: np.ndarray, norms: np.ndarray, subsets: np.ndarray, rank_tol: float,
                     incidence_tol: float) -> tuple[np.ndarray, np.ndarray]:
     r"""
-    Return the unit facet normals ``a`` (k, r) and ``h(a) = sum_j |a . g_j|`` (k,).
+    Return the unit facet normals ``a`` (k, 6) and ``h(a) = sum_j |a . g_j|`` (k,).
 
-    For a zonotope with generators ``g`` ``(r, m)`` (hull coordinates, full dimension r,
-    ``norms`` their lengths), over ``subsets`` (the lexicographic (r-1)-subsets): the cross
+    For a zonotope with generators ``g`` ``(6, m)`` (full-dimensional, ``norms`` their
+    lengths), over ``subsets`` (the lexicographic 5-subsets): the cross
     product of each subset's unit-scaled generators, dropped when its length (the volume)
     is at most ``rank_tol``; one row per incidence set ``{j : |a . g_j| <= incidence_tol
     |g_j|}``, the first in subset order. The same rows, in the same order, as
@@ -307,16 +269,13 @@ def zonotope_facets(g: np.ndarray, norms: np.ndarray, subsets: np.ndarray, rank_
     return _zonotope_facets(np.ascontiguousarray(g, dtype=float),
                             np.ascontiguousarray(norms, dtype=float),
                             np.ascontiguousarray(subsets, dtype=np.int64),
-                            float(rank_tol), float(incidence_tol), *wedge_tables(g.shape[0]))
+                            float(rank_tol), float(incidence_tol))
 
 
 @_jit(inline=True)
-def _cone_row(n, R, side_tol, rank_tol, A, masks, multi, kept, rows, s):
-    """Store the facet of cross product ``n`` at row ``kept`` if it is one; return the count."""
+def _cone_row(n, vol, R, side_tol, A, masks, multi, kept, rows, s):
+    """Store the facet of cross product ``n`` (length ``vol``) at row ``kept`` if it is one."""
     N, r = R.shape
-    vol = np.sqrt(_norm2(n))
-    if not vol > rank_tol:
-        return kept
     slack = side_tol * vol
     above = False
     below = False
@@ -344,7 +303,7 @@ def _cone_row(n, R, side_tol, rank_tol, A, masks, multi, kept, rows, s):
 
 
 @_jit
-def _cone_facets(R, subsets, side_tol, rank_tol, src, row, sign, size):
+def _cone_facets(R, subsets, side_tol, rank_tol):
     N, r = R.shape
     n_sub = subsets.shape[0]
     V = np.ascontiguousarray(R.T)
@@ -352,36 +311,26 @@ def _cone_facets(R, subsets, side_tol, rank_tol, src, row, sign, size):
     masks = np.empty(n_sub, dtype=np.int64)
     multi = np.zeros(n_sub, dtype=np.bool_)
     rows = np.empty(n_sub, dtype=np.int64)
-    W = np.empty((max(r - 1, 1), src.shape[1]))
-    prev = np.full(max(r - 1, 1), -1, dtype=np.int64)
-    n = np.empty(r)
+    W, prev, n = _scratch()
     kept = 0
-    if r == 6:
-        for s in range(n_sub):
-            _subset_normal6(V, subsets, s, prev, W, n)
-            kept = _cone_row(n, R, side_tol, rank_tol, A, masks, multi, kept, rows, s)
-    else:
-        for s in range(n_sub):
-            _subset_normal(V, subsets, s, prev, W, src, row, sign, size, n)
-            kept = _cone_row(n, R, side_tol, rank_tol, A, masks, multi, kept, rows, s)
+    for s in range(n_sub):
+        _subset_normal6(V, subsets, s, prev, W, n)
+        vol = np.sqrt(_norm2(n))
+        if vol > rank_tol:
+            kept = _cone_row(n, vol, R, side_tol, A, masks, multi, kept, rows, s)
     keep = _first_of_each(masks[:kept], multi[:kept])
     return A[:kept][keep], rows[:kept][keep], masks[:kept][keep]
 
 
 @_jit
-def _cone_recheck(R, spans, masks, side_tol, rank_tol, src, row, sign, size):
+def _cone_recheck(R, spans, masks, side_tol, rank_tol):
     N, r = R.shape
     k = spans.shape[0]
     V = np.ascontiguousarray(R.T)
     A = np.empty((k, r))
-    W = np.empty((max(r - 1, 1), src.shape[1]))
-    prev = np.full(max(r - 1, 1), -1, dtype=np.int64)
-    n = np.empty(r)
+    W, prev, n = _scratch()
     for s in range(k):
-        if r == 6:
-            _subset_normal6(V, spans, s, prev, W, n)
-        else:
-            _subset_normal(V, spans, s, prev, W, src, row, sign, size, n)
+        _subset_normal6(V, spans, s, prev, W, n)
         vol = np.sqrt(_norm2(n))
         if not vol > rank_tol:
             return A, False
@@ -409,8 +358,8 @@ def cone_facets(rays: np.ndarray, subsets: np.ndarray, side_tol: float,
     r"""
     Return the unit outward facet normals ``A`` (k, r) of the cone spanned by unit rays.
 
-    For rays ``(N, r)`` (rows, unit length, hull coordinates) and candidate ``subsets``
-    ``(m, r - 1)``: the cross product ``a`` of each subset with volume ``|a|`` above
+    For rays ``(N, 6)`` (rows, unit length, spanning R^6) and candidate ``subsets``
+    ``(m, 5)``: the cross product ``a`` of each subset with volume ``|a|`` above
     ``rank_tol``, kept when no ray lies beyond ``side_tol |a|`` on one of its sides
     (oriented so that every ray has ``A . ray <= 0``), one row per incidence set (the rays
     within ``side_tol |a|`` of it), the first in candidate order: the rows, in the order,
@@ -422,8 +371,7 @@ def cone_facets(rays: np.ndarray, subsets: np.ndarray, side_tol: float,
     """
     R = np.ascontiguousarray(rays, dtype=float)
     S = np.ascontiguousarray(subsets, dtype=np.int64)
-    A, rows, masks = _cone_facets(R, S, float(side_tol), float(rank_tol),
-                                  *wedge_tables(R.shape[1]))
+    A, rows, masks = _cone_facets(R, S, float(side_tol), float(rank_tol))
     return A, S[rows], masks
 
 
@@ -446,7 +394,7 @@ def cone_recheck(rays: np.ndarray, spans: np.ndarray, masks: np.ndarray, side_to
         fails (recompute with :func:`cone_facets`).
     """
     A, ok = _cone_recheck(np.ascontiguousarray(rays, dtype=float), spans, masks,
-                          float(side_tol), float(rank_tol), *wedge_tables(rays.shape[1]))
+                          float(side_tol), float(rank_tol))
     return A if ok else None
 
 

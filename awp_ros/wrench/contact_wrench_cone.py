@@ -50,7 +50,8 @@ from awp_ros.wrench.wrench_polytope import lift_points
 #: rays (K, N, 3) -> (K, N, 6)); :func:`awp_ros.wrench.wrench_polytope.lift_points`.
 lift_rays = lift_points
 
-__all__ = ['contact_wrench_cone', 'friction_pyramid', 'friction_pyramids', 'lift_rays']
+__all__ = ['contact_wrench_cone', 'friction_pyramid', 'friction_pyramids', 'lift_rays',
+           'reset_reuse']
 
 
 def friction_pyramid(normal: np.ndarray, mu: float, sides: int = 4, *,
@@ -196,7 +197,7 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
     r = U.shape[1]
     rh = lifted if r == 6 else lifted @ U                               # (K N, r)
     subsets, tree = _candidates(K, sides, r, tuple(bool(m == 0.0) for m in mu))
-    if kernels.ENABLED and r >= 2 and rh.shape[0] <= kernels.MAX_BITS:
+    if kernels.ENABLED and r == 6 and rh.shape[0] <= kernels.MAX_BITS:
         A = _kernel_facets(rh, subsets, (K, sides, r, rays.tobytes()), side_tol, rank_tol)
     else:
         A = _facets(rh, tree, r, side_tol, rank_tol)
@@ -227,6 +228,11 @@ def _kernel_facets(rh: np.ndarray, subsets: np.ndarray, key: tuple, side_tol: fl
 
 
 _LAST = threading.local()
+
+
+def reset_reuse() -> None:
+    """Forget this thread's last facets (the next cone is searched in full)."""
+    _LAST.facets = None
 
 
 def _facets(rh: np.ndarray, tree: SubsetTree, r: int, side_tol: float,

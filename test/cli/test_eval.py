@@ -106,7 +106,7 @@ def test_missing_state_file(capsys):
 
 
 def test_bench_prints_a_table_and_a_json_line_of_medians(capsys):
-    assert bench_cli.main(['-n', '3', '--warmup', '1', '--seed', '1']) == 0
+    assert bench_cli.main(['-n', '3', '--warmup', '1', '--seed', '1', '--qhull-samples', '0']) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert lines[1].split()[:2] == ['stage', 'median']
     rows = {line.split()[0]: float(line.split()[1]) for line in lines[2:-1]}
@@ -154,7 +154,8 @@ def test_eval_json_has_the_com_regions(monkeypatch, capsys):
 
 
 def test_bench_times_the_regions_and_their_baseline(capsys):
-    assert bench_cli.main(['-n', '2', '--warmup', '0', '--baseline-samples', '1']) == 0
+    assert bench_cli.main(['-n', '2', '--warmup', '0', '--baseline-samples', '1',
+                           '--qhull-samples', '0']) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     rows = {line.split()[0]: float(line.split()[1]) for line in lines[2:-1]}
     summary = json.loads(lines[-1])
@@ -166,3 +167,24 @@ def test_bench_times_the_regions_and_their_baseline(capsys):
     times = bench_cli.run_benchmark(FeasibilityEvaluator('hyq'), 3, warmup=0,
                                     baseline_samples=2)
     assert times['regions_fws_cwc'].shape == (3,) and times['regions_baseline'].shape == (2,)
+
+
+def test_bench_stream_qhull_ratios_and_kernels(capsys):
+    three = ['--stance', 'lf_foot', 'rf_foot', 'lh_foot']       # 512 / ~1300 vertex sums
+    assert bench_cli.main(['-n', '3', '--warmup', '0', '--qhull-samples', '1', '--kernels']
+                          + three) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    rows = {line.split()[0]: float(line.split()[1]) for line in lines[2:-1]
+            if not line.startswith(('kernel ', 'evaluate_many'))}
+    summary = json.loads(lines[-1])
+    for key in ('total_stream_ms', 'fws_per_cycle_ms', 'awp_qhull_ms', 'fws_qhull_ms'):
+        assert summary[key] > 0, key
+    assert summary['total_vs_qhull'] == pytest.approx(rows['awp_qhull'] / rows['total'],
+                                                      rel=0.01)
+    assert summary['fws_vs_qhull'] == pytest.approx(rows['fws_qhull'] / rows['stream_fws'],
+                                                    rel=0.01)
+    assert set(summary['kernel_ratios']) == {'force parallelepipeds', 'AWP zonotope',
+                                             'CWC, new feet every call', 'CWC along a stream'}
+    assert all(r > 0 for r in summary['kernel_ratios'].values())
+    times = bench_cli.stream_times(FeasibilityEvaluator('hyq'), 4, fws=False)
+    assert set(times) == {'stream_total'} and times['stream_total'].shape == (4,)
