@@ -8,7 +8,8 @@ Time the node's pipeline, message by message, over a bag (no DDS): where a joint
 Reads the joint states and contacts of ``BAG`` (default: the default bag,
 ``config/hyq_gait.mcap``), feeds them to :class:`awp_ros.ros.pipeline.Pipeline` in recorded order
 as ``awp_node`` does (the first pass warms up, the last is timed) and prints, per joint state,
-the mean and median wall time of :meth:`~awp_ros.ros.pipeline.Pipeline.on_joint_state` [ms], the
+the mean and median wall time of :meth:`~awp_ros.ros.pipeline.Pipeline.on_joint_state` [ms], how
+often the contact wrench cone reused its last facets (``cwc_reused``, ``cwc_searched``), the
 mean of each evaluation stage (:data:`awp_ros.evaluation.evaluator.STAGES`) and of the FWS
 amortised over all joint states, the rest (report and input conversion), and the means by number
 of stance legs. Its last line is one JSON object. Output messages other than the report are not
@@ -39,6 +40,7 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2) -> dict:
     from awp_ros.evaluation.evaluator import STAGES
     from awp_ros.robot.config import load_parameters
     from awp_ros.ros.pipeline import Pipeline
+    from awp_ros.wrench.contact_wrench_cone import reuse_counts
 
     params, base_dir = load_parameters(robot)
     pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
@@ -47,6 +49,7 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2) -> dict:
             for m in read_bag(bag, topics=list(types))]
     for _ in range(max(1, repeat)):
         wall, legs, stages, fws = [], [], {s: [] for s in STAGES}, []
+        reuse0 = reuse_counts()
         for topic, msg in msgs:
             if topic == '/contacts':
                 pipeline.on_contacts(msg)
@@ -62,7 +65,9 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2) -> dict:
                                                               'fws_margin'))
                        if r is not None and cycle.fws_computed else 0.0)
     wall_a, legs_a = np.array(wall), np.array(legs)
+    reused, searched = (a - b for a, b in zip(reuse_counts(), reuse0))
     out = {'joint_states': len(wall), 'mean_ms': float(wall_a.mean()),
+           'cwc_reused': reused, 'cwc_searched': searched,
            'p50_ms': float(np.median(wall_a)),
            'fws_computed': int(np.count_nonzero(fws)),
            'fws_amortised_ms': float(np.mean(fws))}
@@ -90,7 +95,8 @@ def main(argv: list[str] | None = None) -> int:
     out = time_pipeline(args.bag or str(default_bag_path()), args.robot, args.repeat)
     lines = [f'{out["joint_states"]} joint states: {out["mean_ms"]:.3f} ms mean, '
              f'{out["p50_ms"]:.3f} ms median per joint state; FWS computed '
-             f'{out["fws_computed"]} times']
+             f'{out["fws_computed"]} times; contact wrench cone: facets reused '
+             f'{out["cwc_reused"]} times, searched {out["cwc_searched"]}']
     lines += [f'  {k[:-3]:<20} {v:.4f} ms (mean per joint state)' for k, v in out.items()
               if k.endswith('_ms') and k not in ('mean_ms', 'p50_ms')]
     lines += [f'  {k} stance legs: {v:.3f} ms mean'

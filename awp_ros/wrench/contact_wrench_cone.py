@@ -51,7 +51,7 @@ from awp_ros.wrench.wrench_polytope import lift_points
 lift_rays = lift_points
 
 __all__ = ['contact_wrench_cone', 'friction_pyramid', 'friction_pyramids', 'lift_rays',
-           'reset_reuse']
+           'reset_reuse', 'reuse_counts']
 
 
 def friction_pyramid(normal: np.ndarray, mu: float, sides: int = 4, *,
@@ -221,9 +221,11 @@ def _kernel_facets(rh: np.ndarray, subsets: np.ndarray, key: tuple, side_tol: fl
     if last is not None and last[0] == key:
         A = kernels.cone_recheck(rh, last[1], last[2], side_tol, rank_tol)
         if A is not None:
+            _LAST.reused = getattr(_LAST, 'reused', 0) + 1
             return A
     A, spans, masks = kernels.cone_facets(rh, subsets, side_tol, rank_tol)
     _LAST.facets = (key, spans, masks)
+    _LAST.searched = getattr(_LAST, 'searched', 0) + 1
     return A
 
 
@@ -233,6 +235,11 @@ _LAST = threading.local()
 def reset_reuse() -> None:
     """Forget this thread's last facets (the next cone is searched in full)."""
     _LAST.facets = None
+
+
+def reuse_counts() -> tuple[int, int]:
+    """Return this thread's ``(reused, searched)``: cones from the last facets, and in full."""
+    return getattr(_LAST, 'reused', 0), getattr(_LAST, 'searched', 0)
 
 
 def _facets(rh: np.ndarray, tree: SubsetTree, r: int, side_tol: float,

@@ -98,6 +98,12 @@ def test_counts_match_the_bag_and_timings_nest_within_the_wall_time(trot):
     assert sum(stage_means) + out['fws_amortised_ms'] <= out['mean_ms']
     assert 0.0 <= out['rest_ms'] <= out['mean_ms']
     assert 0.0 < out['p50_ms'] and min(out['mean_ms_by_stance_legs'].values()) > 0.0
+    # The contact wrench cone of every 4-leg state came from the kernels: searched the first
+    # time, then reused or searched again (2-leg cones are 5D: the numpy code, not counted).
+    from awp_ros.geometry import kernels
+    if kernels.ENABLED:
+        assert out['cwc_reused'] + out['cwc_searched'] == legs[4]
+        assert out['cwc_searched'] >= 1
 
 
 def test_cli_prints_a_table_and_one_json_line(trot):
