@@ -126,7 +126,7 @@ setup_env() {
     done_step package
   fi
 
-  if changed kernels "$(files_digest awp_ros/geometry/kernels.py)" "$(python -c 'import sys; print(sys.version)')"; then
+  if changed kernels "$(files_digest awp_ros/geometry/kernels.py awp_ros/geometry/exterior.py)" "$(python -c 'import sys; print(sys.version)')"; then
     say 'compiling the numba kernels (cached on disk: later processes load them)'
     python -c 'from awp_ros.geometry.kernels import compile_all; compile_all()' \
       || fail 'kernels' 'compiling awp_ros.geometry.kernels failed'

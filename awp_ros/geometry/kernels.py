@@ -30,7 +30,10 @@ The kernels work in R^6 (full-dimensional sets: three or more stance legs), with
 tables as constants so that the compiler unrolls them (2-3x over tables passed at run time);
 incidence sets are bit masks, so they take at most 63 generators or rays. Callers use the
 numpy code for flat sets and beyond. Compiled code is cached on disk (numba ``cache=True``);
-``python -m awp_ros.geometry.kernels`` compiles it once (the bootstrap does).
+``python -m awp_ros.geometry.kernels`` compiles it once (the bootstrap does). The tables are
+frozen into the compiled code, whose cache numba keys on this file only: after an edit of
+:func:`awp_ros.geometry.exterior.wedge_table`, touch this file (the bootstrap's stamp covers
+both).
 """
 
 from __future__ import annotations
