@@ -9,12 +9,16 @@ from __future__ import annotations
 
 from itertools import combinations
 import textwrap
+import threading
 
 from awp_ros_msgs.msg import ContactState
 import numpy as np
 import pinocchio as pin
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
 
+from awp_ros.node.launcher import stop_node
 from awp_ros.wrench.wrench_polytope import lift_matrices
 
 # -- a toy robot whose legs have a diagonal Jacobian ------------------------------------------
@@ -214,3 +218,47 @@ REPORT_RECORDER = textwrap.dedent("""
     node.destroy_node()
     rclpy.shutdown()
 """)
+
+
+class DdsPeer:
+    """
+    A test's own DDS participant: a private rclpy context and node, spun in a thread.
+
+    Subclasses create their publishers and subscriptions (``keep`` stores messages under
+    ``lock``), then call :meth:`start`; :meth:`close` ends it all.
+    """
+
+    def __init__(self, env: dict, name: str) -> None:
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=int(env['ROS_DOMAIN_ID']))
+        self.node = rclpy.create_node(name, context=self.context)
+        self.lock = threading.Lock()
+
+    def keep(self, into: list):
+        """Return a subscription callback appending each message to ``into``."""
+        def callback(msg) -> None:
+            with self.lock:
+                into.append(msg)
+        return callback
+
+    def start(self) -> None:
+        """Spin the node in a daemon thread."""
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
+        self.thread.start()
+
+    def close(self) -> None:
+        """Stop spinning, destroy the node, shut the context down."""
+        self.executor.shutdown()
+        self.thread.join(timeout=5)
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.context)
+
+
+def stop_peers(started: list) -> None:
+    """Close each ``(node process, DdsPeer)``'s peer and stop its node: no traceback logged."""
+    for proc, peer in started:
+        peer.close()
+        log = stop_node(proc)
+        assert 'Traceback' not in log, log

@@ -17,7 +17,6 @@ import math
 import os
 from pathlib import Path
 import signal
-import threading
 import time
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport
@@ -26,8 +25,6 @@ from geometry_msgs.msg import Vector3, Wrench
 import numpy as np
 import pytest
 from rcl_interfaces.srv import SetParameters
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, JointState
@@ -41,6 +38,7 @@ from awp_ros.robot.model import resolve_urdf
 from awp_ros.robot.state import RobotState
 from awp_ros.ros.conversions import polytope_from_msg, stamp_to_ns
 from awp_ros.soak.probe import wait_until
+from cases import DdsPeer, stamp
 
 FEET = ['lf_foot', 'rf_foot', 'lh_foot', 'rh_foot']
 QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
@@ -54,38 +52,23 @@ def evaluator():
     return FeasibilityEvaluator('hyq')
 
 
-class Client:
+class Client(DdsPeer):
     """The test's DDS participant: an ~/evaluate client, joint-state input, report output."""
 
     def __init__(self, env: dict) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=int(env['ROS_DOMAIN_ID']))
-        self.node = rclpy.create_node('awp_evaluate_test', context=self.context)
+        super().__init__(env, 'awp_evaluate_test')
         self.client = self.node.create_client(Evaluate, 'awp_node/evaluate')
         self.js = self.node.create_publisher(JointState, 'joint_states', QOS)
         self.contacts = self.node.create_publisher(ContactState, 'contacts', QOS)
-        self.lock = threading.Lock()
         self.reports: list[FeasibilityReport] = []
-        self.node.create_subscription(FeasibilityReport, 'awp_node/report', self._store, QOS)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-
-    def _store(self, msg: FeasibilityReport) -> None:
-        with self.lock:
-            self.reports.append(msg)
+        self.node.create_subscription(FeasibilityReport, 'awp_node/report',
+                                      self.keep(self.reports), QOS)
+        self.start()
 
     def call(self, request: Evaluate.Request, timeout_s: float = 120.0) -> Evaluate.Response:
         future = self.client.call_async(request)
         wait_until(future.done, timeout_s, 'the ~/evaluate response')
         return future.result()
-
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.thread.join(timeout=5)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
 
 
 @pytest.fixture
@@ -102,11 +85,6 @@ def client(ros_env):
         log = stop_node(proc)
     assert 'Traceback' not in log, log
     assert 'awp_node/evaluate ready' in log, log
-
-
-def _stamp(msg, ns: int):
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
-    return msg
 
 
 def _random_states(evaluator, rng, n: int) -> list[dict]:
@@ -129,14 +107,13 @@ def _random_states(evaluator, rng, n: int) -> list[dict]:
 
 def _messages(doc: dict, ns: int) -> tuple[JointState, ContactState]:
     names = list(doc['joint_positions'])
-    js = _stamp(JointState(name=names, position=[doc['joint_positions'][n] for n in names]),
-                ns)
+    js = stamp(JointState(name=names, position=[doc['joint_positions'][n] for n in names]), ns)
     contacts = ContactState(names=FEET, in_contact=[f in doc['stance'] for f in FEET])
     if 'friction_coefficients' in doc:
         contacts.friction_coefficients = [doc['friction_coefficients'][f] for f in FEET]
         contacts.normals = [Vector3(x=n[0], y=n[1], z=n[2])
                             for n in (doc['normals'][f] for f in FEET)]
-    return js, _stamp(contacts, ns)
+    return js, stamp(contacts, ns)
 
 
 def _awp_eval(doc: dict, tmp_path) -> dict:
@@ -245,11 +222,11 @@ def test_margins_of_given_wrenches_are_those_of_the_returned_h_reps(client, eval
 
 
 def _publish_and_wait(client, evaluator, ns: int) -> FeasibilityReport:
-    client.contacts.publish(_stamp(ContactState(names=FEET, in_contact=[True] * 4), ns))
+    client.contacts.publish(stamp(ContactState(names=FEET, in_contact=[True] * 4), ns))
     time.sleep(0.2)                  # another topic: let the contacts arrive first
     js = JointState(name=list(evaluator.model.joint_names),
                     position=evaluator.model.standing_q.tolist())
-    client.js.publish(_stamp(js, ns))
+    client.js.publish(stamp(js, ns))
 
     def answered() -> bool:
         with client.lock:

@@ -16,7 +16,6 @@ from pathlib import Path
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport, LegPolytopes, WrenchPolytope
@@ -25,19 +24,18 @@ from geometry_msgs.msg import PolygonStamped
 import numpy as np
 import pytest
 from rcl_interfaces.srv import SetParameters
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from visualization_msgs.msg import Marker, MarkerArray
 
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
-from awp_ros.node.launcher import start_node, stop_node
+from awp_ros.node.launcher import start_node
 from awp_ros.robot.config import find_parameters_file
 from awp_ros.robot.state import RobotState
 from awp_ros.ros.conversions import polytope_from_msg, stamp_to_ns
 from awp_ros.soak.probe import wait_until
+from cases import DdsPeer, stamp, stop_peers
 
 AWP_EVAL = Path(sys.executable).parent / 'awp_eval'
 FEET = ['lf_foot', 'rf_foot', 'lh_foot', 'rh_foot']
@@ -51,38 +49,22 @@ def evaluator():
     return FeasibilityEvaluator('hyq')
 
 
-class Peer:
+class Peer(DdsPeer):
     """The test's side of the DDS conversation with one awp_node process."""
 
     def __init__(self, env: dict, outputs: dict) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=int(env['ROS_DOMAIN_ID']))
-        self.node = rclpy.create_node('awp_test_peer', context=self.context)
+        super().__init__(env, 'awp_test_peer')
         self.js = self.node.create_publisher(JointState, 'joint_states', QOS)
         self.contacts = self.node.create_publisher(ContactState, 'contacts', QOS)
-        self.lock = threading.Lock()
         self.got: dict[str, list] = {name: [] for name in outputs}
         for name, mtype in outputs.items():
             topic = name if name.startswith('/') else f'awp_node/{name}'
-            self.node.create_subscription(mtype, topic, self._store(name), QOS)
+            self.node.create_subscription(mtype, topic, self.keep(self.got[name]), QOS)
         self.diag: list = []
-        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._store_diag, QOS)
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self.keep(self.diag), QOS)
         self.sent = {'joint_states': 0, 'contacts': 0}
         self.seq: dict[str, list] = {}
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-
-    def _store(self, name: str):
-        def callback(msg) -> None:
-            with self.lock:
-                self.got[name].append(msg)
-        return callback
-
-    def _store_diag(self, msg) -> None:
-        with self.lock:
-            self.diag.append(msg)
+        self.start()
 
     def subscribe_late(self, name: str, mtype) -> None:
         """Subscribe to ``~/name`` now; keep (message, publication sequence number)."""
@@ -101,25 +83,23 @@ class Peer:
         self.js.publish(msg)
         self.sent['joint_states'] += 1
 
-    def inputs(self) -> dict[str, str]:
-        """Return the values of the node's latest 'inputs' diagnostics status ({} if none)."""
+    def status(self, name: str) -> dict[str, str]:
+        """Return the values of the latest diagnostics status ``awp_node: <name>`` ({} if none)."""
         with self.lock:
             arrays = list(self.diag)
         for arr in reversed(arrays):
             for st in arr.status:
-                if st.name == 'awp_node: inputs':
+                if st.name == f'awp_node: {name}':
                     return {kv.key: kv.value for kv in st.values}
         return {}
 
+    def inputs(self) -> dict[str, str]:
+        """Return the values of the node's latest 'inputs' diagnostics status ({} if none)."""
+        return self.status('inputs')
+
     def evaluation(self) -> dict[str, str]:
         """Return the values of the node's latest 'evaluation' status ({} if none)."""
-        with self.lock:
-            arrays = list(self.diag)
-        for arr in reversed(arrays):
-            for st in arr.status:
-                if st.name == 'awp_node: evaluation':
-                    return {kv.key: kv.value for kv in st.values}
-        return {}
+        return self.status('evaluation')
 
     def until_outputs(self, names, send, timeout: float = 30.0) -> int:
         """
@@ -183,12 +163,6 @@ class Peer:
     def now_ns(self) -> int:
         return self.node.get_clock().now().nanoseconds
 
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.thread.join(timeout=5)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
 
 @pytest.fixture
 def run_node(ros_env, monkeypatch):
@@ -206,23 +180,15 @@ def run_node(ros_env, monkeypatch):
         return peer
 
     yield start
-    for proc, peer in started:
-        peer.close()
-        out = stop_node(proc)
-        assert 'Traceback' not in out, out
-
-
-def _stamp(msg, ns: int):
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
-    return msg
+    stop_peers(started)
 
 
 def _contacts(ns: int, stance) -> ContactState:
-    return _stamp(ContactState(names=FEET, in_contact=[f in stance for f in FEET]), ns)
+    return stamp(ContactState(names=FEET, in_contact=[f in stance for f in FEET]), ns)
 
 
 def _joints(evaluator, ns: int, q: np.ndarray) -> JointState:
-    return _stamp(JointState(name=list(evaluator.model.joint_names), position=q.tolist()), ns)
+    return stamp(JointState(name=list(evaluator.model.joint_names), position=q.tolist()), ns)
 
 
 def _by_stamp(msgs) -> dict:
@@ -580,10 +546,10 @@ def test_another_robot_runs_from_its_params_file(run_node):
     go2 = FeasibilityEvaluator('go2')
     feet = list(go2.feet)
     ns = peer.now_ns()
-    peer.send_contacts(_stamp(ContactState(names=feet, in_contact=[True] * 4), ns))
+    peer.send_contacts(stamp(ContactState(names=feet, in_contact=[True] * 4), ns))
     peer.wait_received('contacts')
-    peer.send_js(_stamp(JointState(name=list(go2.model.joint_names),
-                                   position=go2.model.standing_q.tolist()), ns))
+    peer.send_js(stamp(JointState(name=list(go2.model.joint_names),
+                                  position=go2.model.standing_q.tolist()), ns))
     peer.wait_for(lambda g: g['report'], 30, 'a go2 report')
     rep = peer.got['report'][0]
     ref = go2.evaluate(go2.standing_state(friction_coefficient=1.0))
@@ -608,9 +574,9 @@ def test_one_report_per_joint_state_at_1khz(run_node, evaluator):
             time.sleep(left - 2e-4 if left > 4e-4 else 0)
         ns = peer.now_ns()
         if i % 20 == 0:                           # 50 Hz contacts, fresh stamps
-            peer.contacts.publish(_stamp(contacts, ns))
+            peer.contacts.publish(stamp(contacts, ns))
         msg = JointState(name=names, position=(q0 + 0.02 * math.sin(i / 80)).tolist())
-        peer.js.publish(_stamp(msg, ns))
+        peer.js.publish(stamp(msg, ns))
         stamps.append(ns)
     sent_rate = n / (time.perf_counter() - start)
     peer.wait_for(lambda g: len(g['report']) >= n, 60, f'{n} reports')

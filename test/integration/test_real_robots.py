@@ -17,15 +17,12 @@ import json
 from pathlib import Path
 import subprocess
 import sys
-import threading
 import time
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 import pytest
-import rclpy
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
@@ -39,7 +36,7 @@ from awp_ros.node.launcher import start_node, stop_node
 from awp_ros.robot.config import load_config
 from awp_ros.robot.state import RobotState
 from awp_ros.ros.conversions import stamp_to_ns
-from cases import efforts_for, stamp
+from cases import DdsPeer, efforts_for, stamp, stop_peers
 
 BIN = Path(sys.executable).parent
 S = FeasibilityReport
@@ -66,30 +63,18 @@ def a1(a1_yaml) -> FeasibilityEvaluator:
     return FeasibilityEvaluator(load_config(a1_yaml))
 
 
-class Peer:
+class Peer(DdsPeer):
     """The test's DDS participant: publishers on demand, the node's reports and diagnostics."""
 
     def __init__(self, env: dict) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=int(env['ROS_DOMAIN_ID']))
-        self.node = rclpy.create_node('awp_real_robot_peer', context=self.context)
-        self.lock = threading.Lock()
+        super().__init__(env, 'awp_real_robot_peer')
         self.reports: list = []
         self.diag: list = []
         self.node.create_subscription(FeasibilityReport, 'awp_node/report',
-                                      self._keep(self.reports), QOS)
-        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._keep(self.diag),
+                                      self.keep(self.reports), QOS)
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self.keep(self.diag),
                                       QOS)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.thread = threading.Thread(target=self.executor.spin, daemon=True)
-        self.thread.start()
-
-    def _keep(self, into: list):
-        def callback(msg) -> None:
-            with self.lock:
-                into.append(msg)
-        return callback
+        self.start()
 
     def publisher(self, mtype, topic: str, qos: QoSProfile = QOS):
         return self.node.create_publisher(mtype, topic, qos)
@@ -118,12 +103,6 @@ class Peer:
         self.wait(lambda: pub.get_subscription_count() > 0, f'a subscriber on {pub.topic_name}')
         time.sleep(0.3)
 
-    def close(self) -> None:
-        self.executor.shutdown()
-        self.thread.join(timeout=5)
-        self.node.destroy_node()
-        rclpy.try_shutdown(context=self.context)
-
 
 class DiagnosticStatusView:
     """The message and values of one DiagnosticStatus."""
@@ -151,10 +130,7 @@ def a1_node(ros_env, a1_yaml):
         return peer
 
     yield start
-    for proc, peer in started:
-        peer.close()
-        log = stop_node(proc)
-        assert 'Traceback' not in log, log
+    stop_peers(started)
 
 
 def joints(a1, q: dict, ns: int, names=None, efforts: dict | None = None) -> JointState:

@@ -43,6 +43,7 @@ from awp_ros.robot.model import resolve_urdf
 from awp_ros.robot.state import RobotState
 from awp_ros.ros.pipeline import MAX_REASON_CHARS
 from awp_ros.soak.probe import Probe, wait_until
+from cases import stamp
 
 S = FeasibilityReport
 OK, WARNING, INVALID, STALE, ERROR = (S.STATUS_OK, S.STATUS_WARNING, S.STATUS_INVALID_INPUT,
@@ -84,7 +85,7 @@ class Session:
 
     def send_contacts(self, msg: ContactState, ns: int) -> None:
         """Publish a contact state and wait until the node has received it."""
-        _stamp(msg, ns)
+        stamp(msg, ns)
         self.publish_contacts(msg)
         # Another topic than the joint state that follows: no ordering across topics, so
         # wait for the node's own count (its /diagnostics) instead of sleeping.
@@ -102,7 +103,7 @@ class Session:
 
     def send_js(self, msg: JointState, ns: int) -> FeasibilityReport:
         """Publish a joint state stamped ``ns``; return the report answering it."""
-        _stamp(msg, ns)
+        stamp(msg, ns)
         self.js.publish(msg)
         return self.report_for(ns)
 
@@ -170,11 +171,6 @@ def session():
         s.probe.close()
         log = stop_node(proc)
         assert 'Traceback' not in log, log
-
-
-def _stamp(msg, ns: int):
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(ns, 10**9)
-    return msg
 
 
 def _ns(stamp) -> int:
@@ -370,10 +366,10 @@ def test_a_burst_of_mixed_inputs_gets_one_report_each_in_order(session, ref):
     for i in range(300):                       # ~500 Hz, every third one bad
         ns = session.now_ns()
         if i % 50 == 49:                       # fresh contacts, 10 Hz
-            session.publish_contacts(_stamp(contacts(), ns - 1000))
+            session.publish_contacts(stamp(contacts(), ns - 1000))
         bad = i % 3 == 1
         q = posture(ref, lf_hfe_joint=math.nan) if bad else ref.model.standing_q
-        session.js.publish(_stamp(joints(ref, q), ns))
+        session.js.publish(stamp(joints(ref, q), ns))
         stamps.append(ns)
         expected.append(INVALID if bad else OK)
         time.sleep(0.002)
