@@ -52,8 +52,8 @@ try:  # numba is a dependency; without it (or AWP_ROS_KERNELS=numpy) the numpy c
 except ImportError:  # pragma: no cover - exercised only on installs without numba
     numba = None
 
-__all__ = ['ENABLED', 'MAX_BITS', 'cone_facets', 'cone_recheck', 'cross_products',
-           'parallelepipeds', 'wedge_tables', 'zonotope_facets']
+__all__ = ['ENABLED', 'MAX_BITS', 'cone_facets', 'cone_recheck', 'cross_products', 'lifted_rays', 'lifted_zonotope',
+           'parallelepipeds', 'polar_hull', 'polygon_region', 'wedge_tables', 'zonotope_facets']
 
 #: Whether the compiled kernels are used (numba importable and not disabled).
 ENABLED = numba is not None and os.environ.get('AWP_ROS_KERNELS', '') != 'numpy'
@@ -196,28 +196,6 @@ def _norm2(n):
     return acc
 
 
-@_jit(inline=True)
-def _zonotope_row(n, vol, gT, norms, incidence_tol, a, h, masks, multi, kept):
-    """Store the facet of cross product ``n`` (length ``vol``) at row ``kept``; the count."""
-    m, r = gT.shape
-    inv = 1.0 / vol
-    total = 0.0
-    mask = 0
-    count = 0
-    for j in range(m):
-        dot = abs(_dot(n, gT, j)) * inv
-        total += dot
-        if dot <= incidence_tol * norms[j]:
-            mask |= 1 << j
-            count += 1
-    for i in range(r):
-        a[kept, i] = n[i] * inv
-    h[kept] = total
-    masks[kept] = mask
-    multi[kept] = count > r - 1
-    return kept + 1
-
-
 @_jit
 def _zonotope_facets(g, norms, subsets, rank_tol, incidence_tol):
     r, m = g.shape
@@ -231,15 +209,135 @@ def _zonotope_facets(g, norms, subsets, rank_tol, incidence_tol):
         for j in range(m):
             U[i, j] = g[i, j] / norms[j]
     gT = np.ascontiguousarray(g.T)
+    limit = incidence_tol * norms
     normals = _cross_products(U, subsets)            # eq. (1) of every subset, then its row
     kept = 0
     for s in range(n_sub):
-        vol = np.sqrt(_norm2(normals[s]))
-        if vol > rank_tol:
-            kept = _zonotope_row(normals[s], vol, gT, norms, incidence_tol, a, h, masks, multi,
-                                 kept)
+        n0, n1, n2 = normals[s, 0], normals[s, 1], normals[s, 2]
+        n3, n4, n5 = normals[s, 3], normals[s, 4], normals[s, 5]
+        vol = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + n3 * n3 + n4 * n4 + n5 * n5)
+        if not vol > rank_tol:
+            continue
+        inv = 1.0 / vol
+        n0, n1, n2, n3, n4, n5 = n0 * inv, n1 * inv, n2 * inv, n3 * inv, n4 * inv, n5 * inv
+        # The subset's own generators are on the facet (|a . g_j| is rounding): the mask
+        # starts with them and only the others are dotted (eq. 2, eq. 3).
+        mask = 0
+        for t in range(r - 1):
+            mask |= np.int64(1) << subsets[s, t]
+        total = 0.0
+        count = r - 1
+        for j in range(m):
+            if (mask >> j) & 1:
+                continue
+            dot = abs(n0 * gT[j, 0] + n1 * gT[j, 1] + n2 * gT[j, 2] + n3 * gT[j, 3]
+                      + n4 * gT[j, 4] + n5 * gT[j, 5])
+            total += dot
+            if dot <= limit[j]:
+                mask |= np.int64(1) << j
+                count += 1
+        a[kept, 0], a[kept, 1], a[kept, 2] = n0, n1, n2
+        a[kept, 3], a[kept, 4], a[kept, 5] = n3, n4, n5
+        h[kept] = total
+        masks[kept] = mask
+        multi[kept] = count > r - 1
+        kept += 1
     keep = _first_of_each(masks[:kept], multi[:kept])
-    return a[:kept][keep], h[:kept][keep]
+    return a[keep], h[keep]
+
+
+@_jit
+def _lifted_zonotope(P, C, H, subsets, zero_tol, certify, rank_tol, incidence_tol):
+    K = P.shape[0]
+    m = 3 * K
+    G = np.empty((6, m))
+    c = np.zeros(6)
+    for k in range(K):                       # L_k = [I; [p_k]x]: the centre, the generators
+        px, py, pz = P[k, 0], P[k, 1], P[k, 2]
+        fx, fy, fz = C[k, 0], C[k, 1], C[k, 2]
+        c[0] += fx
+        c[1] += fy
+        c[2] += fz
+        c[3] += py * fz - pz * fy
+        c[4] += pz * fx - px * fz
+        c[5] += px * fy - py * fx
+        for j in range(3):
+            gx, gy, gz = H[k, 0, j], H[k, 1, j], H[k, 2, j]
+            col = 3 * k + j
+            G[0, col], G[1, col], G[2, col] = gx, gy, gz
+            G[3, col] = py * gz - pz * gy
+            G[4, col] = pz * gx - px * gz
+            G[5, col] = px * gy - py * gx
+    norms = np.empty(m)
+    top = 0.0
+    for j in range(m):
+        acc = 0.0
+        for i in range(6):
+            acc += G[i, j] * G[i, j]
+        norms[j] = np.sqrt(acc)
+        top = max(top, norms[j])
+    for j in range(m):
+        if not norms[j] > zero_tol * top:
+            return np.empty((0, 6)), np.empty(0), c, False
+    # Full rank certified as orthonormal_span does: det(G G^T) / tr^6 from a Cholesky.
+    gram = G @ G.T
+    trace = 0.0
+    for i in range(6):
+        trace += gram[i, i]
+    R = np.zeros((6, 6))
+    ratio = 1.0
+    for i in range(6):
+        for j in range(i + 1):
+            acc = gram[i, j]
+            for t in range(j):
+                acc -= R[i, t] * R[j, t]
+            if i == j:
+                if not acc > 0.0:
+                    return np.empty((0, 6)), np.empty(0), c, False
+                R[i, i] = np.sqrt(acc)
+                ratio *= acc / trace
+            else:
+                R[i, j] = acc / R[j, j]
+    if not (trace > 0.0 and ratio > certify):
+        return np.empty((0, 6)), np.empty(0), c, False
+    a, h = _zonotope_facets(G, norms, subsets, rank_tol, incidence_tol)
+    k = a.shape[0]
+    A = np.empty((2 * k, 6))
+    b = np.empty(2 * k)
+    for s in range(k):
+        ac = 0.0
+        for i in range(6):
+            A[s, i] = a[s, i]
+            A[k + s, i] = -a[s, i]
+            ac += a[s, i] * c[i]
+        b[s] = ac + h[s]
+        b[k + s] = h[s] - ac
+    return A, b, c, True
+
+
+def lifted_zonotope(positions: np.ndarray, centers: np.ndarray, generators: np.ndarray,
+                    subsets: np.ndarray, zero_tol: float, certify: float, rank_tol: float,
+                    incidence_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    r"""
+    Return the AWP of K >= 3 parallelepiped legs, ``(A, b, c)``, in one compiled call.
+
+    :func:`awp_ros.wrench.wrench_polytope.actuation_wrench_polytope` and
+    :func:`awp_ros.geometry.zonotope.zonotope` fused for the full-dimensional case: the lifted
+    centre ``c = sum_k L_k c_k`` and generators ``L_k H_k``, the full rank certified as
+    :func:`awp_ros.geometry.linalg.orthonormal_span` does (``det(G G^T) / tr^6 >
+    certify``, from a Cholesky factor), :func:`zonotope_facets`, and the rows ``[a; -a]``,
+    ``b = [a . c + h; h - a . c]`` in the reference's order.
+
+    :return: ``(A, b, c)``, or None when a generator is shorter than ``zero_tol`` times the
+        longest or the certificate fails (the caller takes the general code).
+    """
+    A, b, c, ok = _lifted_zonotope(np.ascontiguousarray(positions, dtype=float),
+                                   np.ascontiguousarray(centers, dtype=float),
+                                   np.ascontiguousarray(generators, dtype=float),
+                                   np.ascontiguousarray(subsets, dtype=np.int64),
+                                   float(zero_tol), float(certify), float(rank_tol),
+                                   float(incidence_tol))
+    return (A, b, c) if ok else None
 
 
 @_jit
@@ -356,6 +454,62 @@ def _cone_recheck(R, spans, masks, side_tol, rank_tol):
     return A, True
 
 
+@_jit
+def _lifted_rays(P, rays, certify):
+    K, N = rays.shape[0], rays.shape[1]
+    R = np.empty((K * N, 6))
+    for k in range(K):
+        px, py, pz = P[k, 0], P[k, 1], P[k, 2]
+        for i in range(N):
+            x, y, z = rays[k, i, 0], rays[k, i, 1], rays[k, i, 2]
+            row = k * N + i
+            R[row, 0], R[row, 1], R[row, 2] = x, y, z
+            R[row, 3] = py * z - pz * y
+            R[row, 4] = pz * x - px * z
+            R[row, 5] = px * y - py * x
+            acc = 0.0
+            for t in range(6):
+                acc += R[row, t] * R[row, t]
+            inv = 1.0 / np.sqrt(acc)
+            for t in range(6):
+                R[row, t] *= inv
+    gram = R.T @ R                           # the certificate of orthonormal_span
+    trace = 0.0
+    for i in range(6):
+        trace += gram[i, i]
+    L = np.zeros((6, 6))
+    ratio = 1.0
+    for i in range(6):
+        for j in range(i + 1):
+            acc = gram[i, j]
+            for t in range(j):
+                acc -= L[i, t] * L[j, t]
+            if i == j:
+                if not acc > 0.0:
+                    return R, False
+                L[i, i] = np.sqrt(acc)
+                ratio *= acc / trace
+            else:
+                L[i, j] = acc / L[j, j]
+    return R, trace > 0.0 and ratio > certify
+
+
+def lifted_rays(positions: np.ndarray, rays: np.ndarray,
+                certify: float) -> tuple[np.ndarray, bool]:
+    r"""
+    Return the unit lifted rays ``L_k r / |L_k r|`` (K N, 6) and whether they span R^6.
+
+    The lift of :mod:`awp_ros.wrench.contact_wrench_cone` eq. (3) (``[r; p_k x r]``,
+    normalised) and the full-rank certificate of
+    :func:`awp_ros.geometry.linalg.orthonormal_span` (``det(R^T R) / tr^6 > certify``) in
+    one compiled call; False means "not certified" (the caller's SVD decides).
+
+    :param positions: (K, 3) feet [m]; :param rays: (K, N, 3) pyramid rays (unit).
+    """
+    return _lifted_rays(np.ascontiguousarray(positions, dtype=float),
+                        np.ascontiguousarray(rays, dtype=float), float(certify))
+
+
 def cone_facets(rays: np.ndarray, subsets: np.ndarray, side_tol: float,
                 rank_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     r"""
@@ -468,6 +622,200 @@ def parallelepipeds(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray,
     return dict(zip(('center', 'generators', 'vertices', 'A', 'b', 'sigma_ratio'), out))
 
 
+_COLLINEAR = 1e-12  # relative cross product under which three points count as collinear
+
+
+@_jit
+def _polar_hull(D, slack):
+    m = D.shape[1]
+    x, y = D[0], D[1]
+    # Akl-Toussaint: the extreme points along 8 directions make an octagon (ccw); points
+    # strictly inside it are not hull vertices.
+    ext = np.empty(8, dtype=np.int64)
+    for k in range(8):
+        c, s = np.cos(0.25 * np.pi * k), np.sin(0.25 * np.pi * k)
+        best, arg = -np.inf, 0
+        for i in range(m):
+            v = c * x[i] + s * y[i]
+            if v > best:
+                best, arg = v, i
+        ext[k] = arg
+    # The disc inscribed in the octagon about the origin (when inside it) is a cheaper
+    # first test: dual points of far lines cluster about the origin.
+    r2 = np.inf
+    for k in range(8):
+        p, q = ext[k], ext[(k + 1) % 8]
+        ex, ey = x[q] - x[p], y[q] - y[p]
+        ee = ex * ex + ey * ey
+        if ee > 0.0:
+            cross = ex * (0.0 - y[p]) - ey * (0.0 - x[p])
+            r2 = min(r2, cross * abs(cross) / ee)
+    r2 = r2 * (1.0 - 1e-9) if r2 > 0.0 else 0.0
+    keep = np.empty(m, dtype=np.int64)
+    n_keep = 0
+    for i in range(m):
+        if x[i] * x[i] + y[i] * y[i] < r2:
+            continue
+        inside = True
+        for k in range(8):
+            p, q = ext[k], ext[(k + 1) % 8]
+            if p == q:
+                continue
+            ex, ey = x[q] - x[p], y[q] - y[p]
+            cross = ex * (y[i] - y[p]) - ey * (x[i] - x[p])
+            if cross <= slack * (abs(ex) + abs(ey)):
+                inside = False
+                break
+        if not inside:
+            keep[n_keep] = i
+            n_keep += 1
+    idx = keep[:n_keep]
+    # Andrew's monotone chain on the rest (sorted by x, then y), strictly convex turns.
+    order = idx[np.argsort(x[idx] + 0.0 * y[idx], kind='mergesort')]
+    t = 1
+    while t < order.size:                # ties in x: by y (insertion, runs are short)
+        u = t
+        while u > 0 and x[order[u]] == x[order[u - 1]] and y[order[u]] < y[order[u - 1]]:
+            order[u], order[u - 1] = order[u - 1], order[u]
+            u -= 1
+        t += 1
+    n = order.size
+    hull = np.empty(2 * n + 1, dtype=np.int64)
+    k = 0
+    for pass_ in range(2):
+        start = k
+        for t in range(n):
+            i = order[t] if pass_ == 0 else order[n - 1 - t]
+            while k >= start + 2:
+                a, b = hull[k - 2], hull[k - 1]
+                ux, uy, vx, vy = x[b] - x[a], y[b] - y[a], x[i] - x[a], y[i] - y[a]
+                cross = ux * vy - uy * vx
+                if cross > _COLLINEAR * (abs(ux) + abs(uy)) * (abs(vx) + abs(vy)):
+                    break
+                k -= 1
+            hull[k] = i
+            k += 1
+        k -= 1                            # the last point starts the other chain
+    return hull[:max(k, 0)].copy()
+
+
+def polar_hull(D: np.ndarray, slack: float = 0.0) -> np.ndarray:
+    r"""
+    Return the vertices of the convex hull of 2D points ``D`` (2, m), counter-clockwise.
+
+    The dual points of a CoM region's lines (:mod:`awp_ros.wrench.com_region`, step 6).
+    Points strictly inside the octagon of the extreme points along 8 directions (by more
+    than ``slack`` times the edge's 1-norm) are dropped first (Akl-Toussaint), then
+    Andrew's monotone chain keeps the strictly convex turns of the rest: points on a hull
+    edge (a cross product within ``_COLLINEAR`` relative of 0) are not vertices. The
+    reference is qhull (the tests).
+
+    :return: integer indices into the columns of ``D``, ccw, starting at the point of
+        smallest ``x`` (then ``y``); fewer than 3 for degenerate input.
+    """
+    return _polar_hull(np.ascontiguousarray(D, dtype=float), float(slack))
+
+
+@_jit
+def _polygon_region(N2, h, x0, tol, parallel):
+    m = h.shape[0]
+    D = np.empty((2, m))
+    for i in range(m):
+        s = h[i] - (N2[0, i] * x0[0] + N2[1, i] * x0[1])
+        D[0, i] = N2[0, i] / s
+        D[1, i] = N2[1, i] / s
+    chain = _polar_hull(D, 0.0)
+    k = chain.size
+    A = np.empty((k, 2))
+    b = np.empty(k)
+    V = np.empty((k, 2))
+    if k < 3:
+        return chain, A, b, V, np.nan, False
+    for j in range(k):                   # the primal vertices, relative to x0
+        a, c = chain[j], chain[(j + 1) % k]
+        det = D[0, a] * D[1, c] - D[1, a] * D[0, c]
+        if not det > 0.0:
+            return chain, A, b, V, np.nan, False
+        V[j, 0] = (D[1, c] - D[1, a]) / det
+        V[j, 1] = (D[0, a] - D[0, c]) / det
+    for j in range(k):                   # unit rows and offsets about the current CoM
+        ax, ay = N2[0, chain[j]], N2[1, chain[j]]
+        nn = np.sqrt(ax * ax + ay * ay)
+        A[j, 0], A[j, 1], b[j] = ax / nn, ay / nn, h[chain[j]] / nn
+    shifted = True                       # V is relative to x0 until recomputed from A, b
+    while True:
+        # Edge i joins vertices i - 1 and i; a line touching the polygon at one vertex has
+        # a zero-length edge and is dropped when its neighbours are not parallel.
+        short = np.zeros(k, dtype=np.bool_)
+        n_short = 0
+        for i in range(k):
+            ex, ey = V[i, 0] - V[i - 1, 0], V[i, 1] - V[i - 1, 1]
+            if np.sqrt(ex * ex + ey * ey) <= tol:
+                p, q = (i - 1) % k, (i + 1) % k
+                if A[p, 0] * A[q, 1] - A[p, 1] * A[q, 0] > parallel:
+                    short[i] = True
+                    n_short += 1
+        if k <= 3 or n_short == 0:
+            break
+        drop = np.zeros(k, dtype=np.bool_)
+        if n_short == k:
+            drop[0] = True
+        else:
+            for i in range(k):
+                drop[i] = short[i] and not short[i - 1]
+        keep = np.flatnonzero(~drop)
+        chain, A, b = chain[keep], A[keep], b[keep]
+        k = chain.size
+        V = np.empty((k, 2))
+        for i in range(k):
+            q = (i + 1) % k
+            det = A[i, 0] * A[q, 1] - A[i, 1] * A[q, 0]
+            V[i, 0] = (b[i] * A[q, 1] - A[i, 1] * b[q]) / det
+            V[i, 1] = (A[i, 0] * b[q] - A[q, 0] * b[i]) / det
+        shifted = False
+    if shifted:
+        for i in range(k):
+            V[i, 0] += x0[0]
+            V[i, 1] += x0[1]
+    inside = np.inf
+    for i in range(k):
+        inside = min(inside, b[i])
+    if inside >= 0.0:
+        return chain, A, b, V, inside, True
+    best = np.inf                        # outside: the distance of 0 to the edges
+    for i in range(k):
+        q = (i + 1) % k
+        ex, ey = V[q, 0] - V[i, 0], V[q, 1] - V[i, 1]
+        ee = ex * ex + ey * ey
+        t = -(V[i, 0] * ex + V[i, 1] * ey) / ee if ee > 0.0 else 0.0
+        t = min(1.0, max(0.0, t))
+        qx, qy = V[i, 0] + t * ex, V[i, 1] + t * ey
+        best = min(best, qx * qx + qy * qy)
+    return chain, A, b, V, -np.sqrt(best), True
+
+
+def polygon_region(N2: np.ndarray, h: np.ndarray, x0: np.ndarray | None, tol: float,
+                   parallel: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, float] | None:
+    r"""
+    Return the polygon ``{delta : N2^T delta <= h}`` of a CoM region (steps 6-7, compiled).
+
+    The compiled :func:`awp_ros.wrench.com_region._polar` and ``_polygon`` (their numpy
+    code is the reference): the dual points ``n_i / (h_i - n_i . x_0)`` about the interior
+    point ``x0`` (None: the current CoM), their hull (:func:`polar_hull`), the primal
+    vertices, then the lines whose edges are at most ``tol`` [m] long dropped (their
+    neighbours' normals not ``parallel``), and the signed margin of the current CoM.
+
+    :return: ``(A, b, V, margin)`` (unit edge normals (k, 2), offsets [m], ccw vertices
+        (k, 2) [m] relative to the current CoM, edge ``i`` joining vertices ``i - 1`` and
+        ``i``), or None when 0 is not strictly inside the dual hull (unbounded region).
+    """
+    x = np.zeros(2) if x0 is None else np.ascontiguousarray(x0, dtype=float)
+    _, A, b, V, margin, ok = _polygon_region(np.ascontiguousarray(N2, dtype=float),
+                                             np.ascontiguousarray(h, dtype=float), x,
+                                             float(tol), float(parallel))
+    return (A, b, V, float(margin)) if ok else None
+
+
 def compile_all() -> None:
     """
     Compile (or load from the disk cache) every kernel on small inputs, once per process.
@@ -488,6 +836,12 @@ def compile_all() -> None:
     rays = g.T / np.linalg.norm(g.T, axis=1)[:, None]
     A, spans, masks = cone_facets(rays, subsets, 1e-9, 1e-9)
     cone_recheck(rays, spans, masks, 1e-9, 1e-9)
+    polar_hull(g[:2])
+    lifted_rays(g[:3, :3], rng.normal(size=(3, 4, 3)), 1e-10)
+    lifted_zonotope(g[:3, :3], g[3:6, :3], rng.normal(size=(3, 3, 3)),
+                    np.array(list(combinations(range(9), 5)), dtype=np.int64), 1e-12, 1e-10,
+                    1e-9, 1e-9)
+    polygon_region(g[:2], np.ones(8), None, 1e-9, 1e-12)
     J = rng.normal(size=(2, 3, 3))
     parallelepipeds(J, g[:2, :3], -np.ones((2, 3)), np.ones((2, 3)), 1e-9)
 

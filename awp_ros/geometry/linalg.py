@@ -36,6 +36,7 @@ from awp_ros.errors import InputError
 from awp_ros.geometry.exterior import hodge_normal, wedge_rows, wedge_table
 
 __all__ = [
+    'GRAM_CERTIFY',
     'SubsetTree',
     'quaternion_matrix',
     'cross3',
@@ -247,9 +248,9 @@ def orthonormal_span(V: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
               = \frac{\prod_i R_{ii}^2}{(\operatorname{tr} G)^n}
 
     (``lambda_max <= tr G`` and ``det G <= lambda_min lambda_max^(n-1)``). When the right
-    side exceeds ``max(rtol^2, _GRAM_CERTIFY)`` every singular value is above ``rtol`` times
+    side exceeds ``max(rtol^2, GRAM_CERTIFY)`` every singular value is above ``rtol`` times
     the largest, so the rank is n, exactly what the SVD test would find; the floor
-    ``_GRAM_CERTIFY`` keeps the certificate to well-conditioned ``G``, whose Cholesky
+    ``GRAM_CERTIFY`` keeps the certificate to well-conditioned ``G``, whose Cholesky
     factor is accurate. Otherwise (flat or ill-conditioned sets) the SVD decides.
 
     :param V: array of shape ``(k, n)``.
@@ -267,7 +268,7 @@ def orthonormal_span(V: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
         R, info = _dpotrf(G)
         if info == 0 and trace > 0.0:        # det G / (tr G)^n, without over/underflow
             ratio = math.prod([x * x / trace for x in R.diagonal().tolist()])
-            if ratio > max(rtol * rtol, _GRAM_CERTIFY):
+            if ratio > max(rtol * rtol, GRAM_CERTIFY):
                 return np.eye(n)
     _, s, vt = np.linalg.svd(V, full_matrices=False)
     if s.size == 0 or s[0] == 0.0:
@@ -311,7 +312,7 @@ def distinct_columns(mask: np.ndarray, own: int = 0) -> np.ndarray:
 
 
 _WORKSPACE = threading.local()
-_GRAM_CERTIFY = 1e-10  # det G / (tr G)^n above this certifies full rank (orthonormal_span)
+GRAM_CERTIFY = 1e-10  # det G / (tr G)^n above this certifies full rank (orthonormal_span)
 _NEXT, _PREV = np.array([1, 2, 0]), np.array([2, 0, 1])
 _LEVI_CIVITA = np.zeros((3, 3, 3))
 _LEVI_CIVITA[0, 1, 2] = _LEVI_CIVITA[1, 2, 0] = _LEVI_CIVITA[2, 0, 1] = 1.0

@@ -22,6 +22,7 @@ with world-aligned axes (REP 103) and origin at the robot's centre of mass.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -50,15 +51,31 @@ class Polytope:
         """Return True for the empty set."""
         return self.dimension < 0
 
-    @property
+    @cached_property
     def equalities(self) -> tuple[np.ndarray, np.ndarray]:
-        """Return (E, e) with E x = e describing the affine hull, E of shape (n - r, n)."""
+        r"""
+        Return (E, e) with E x = e describing the affine hull, E of shape (n - r, n).
+
+        ``E`` has orthonormal rows spanning the complement of ``span U``. A hyperplane
+        (``r = n - 1``: two stance legs) takes the column of the projector
+        :math:`I - U U^T` of largest norm, normalised; other cases the SVD of ``U``.
+        Computed once per polytope (read-only arrays).
+        """
         n, r = self.ambient_dim, self.hull_basis.shape[1]
         if r == n:
-            return np.zeros((0, n)), np.zeros(0)
-        u, _, _ = np.linalg.svd(self.hull_basis, full_matrices=True)
-        E = u[:, r:].T
-        return E, E @ self.hull_origin
+            E = np.zeros((0, n))
+        elif r == n - 1:
+            U = self.hull_basis
+            Q = np.eye(n) - U @ U.T
+            j = int(np.einsum('ij,ij->j', Q, Q).argmax())
+            E = (Q[:, j] / np.linalg.norm(Q[:, j]))[None, :]
+        else:
+            u, _, _ = np.linalg.svd(self.hull_basis, full_matrices=True)
+            E = u[:, r:].T
+        e = E @ self.hull_origin
+        E.setflags(write=False)
+        e.setflags(write=False)
+        return E, e
 
     def halfspaces(self) -> np.ndarray:
         """Return the rows ``[a_1 .. a_n, b]`` of ``a . x <= b``, shape (m, n + 1)."""

@@ -39,12 +39,17 @@ from awp_ros.geometry.linalg import (distinct_columns, orthonormal_span, subset_
                                      subset_tree, SubsetTree)
 from awp_ros.geometry.polytope import Polytope
 
-__all__ = ['zonotope', 'zonotope_support']
+__all__ = ['facet_subsets', 'zonotope', 'zonotope_support', 'ZONOTOPE_TOLS']
+
+#: Default tolerances of :func:`zonotope` (its keyword arguments).
+ZONOTOPE_TOLS = {'zero_tol': 1e-12, 'rank_tol': 1e-9, 'span_tol': 1e-9, 'incidence_tol': 1e-9}
 
 
 def zonotope(center: np.ndarray, generators: np.ndarray, *, with_vertices: bool = False,
-             zero_tol: float = 1e-12, rank_tol: float = 1e-9, span_tol: float = 1e-9,
-             incidence_tol: float = 1e-9) -> Polytope:
+             zero_tol: float = ZONOTOPE_TOLS['zero_tol'],
+             rank_tol: float = ZONOTOPE_TOLS['rank_tol'],
+             span_tol: float = ZONOTOPE_TOLS['span_tol'],
+             incidence_tol: float = ZONOTOPE_TOLS['incidence_tol']) -> Polytope:
     r"""
     Return the exact H-representation of the zonotope ``c + G [-1, 1]^m``.
 
@@ -149,6 +154,11 @@ def _check(center: np.ndarray, generators: np.ndarray) -> tuple[np.ndarray, np.n
         msg = 'zonotope center and generators must be finite'
         raise InputError(msg)
     return c, G
+
+
+def facet_subsets(m: int, k: int = 5) -> np.ndarray:
+    """Return the lexicographic k-subsets of range(m) (read-only), eq. (1)'s candidates."""
+    return _combinations(m, k)[0]
 
 
 @lru_cache(maxsize=64)

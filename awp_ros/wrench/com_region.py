@@ -96,6 +96,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, QhullError
 
 from awp_ros.errors import GeometryError, InputError
+from awp_ros.geometry import kernels
 from awp_ros.geometry.polytope import Polytope
 
 __all__ = ['ComRegion', 'com_region', 'com_wrench_map']
@@ -211,12 +212,12 @@ def com_region(polytope: Polytope, force: np.ndarray, moment: np.ndarray, *,
     rank = 0
     r = P.hull_basis.shape[1]
     if r < 6:
-        w0, D = com_wrench_map(force, moment)
         E, e = P.equalities
-        G = E @ D
-        g = e - E @ w0
-        u, s, vt = np.linalg.svd(G, full_matrices=True)
-        rank = int(np.sum(s > const_tol))
+        Em = E[:, 3:]                    # G = E D: only D's moment rows are non-zero
+        G = np.column_stack((fy * Em[:, 2] - fz * Em[:, 1], fz * Em[:, 0] - fx * Em[:, 2]))
+        g = e - E @ np.array((fx, fy, fz, Lx, Ly, Lz))
+        u, s, vt = _svd(G)
+        rank = int(np.count_nonzero(s > const_tol))
         d0 = vt[:rank].T @ ((u[:, :rank].T @ g) / s[:rank]) if rank else np.zeros(2)
         if np.linalg.norm(G @ d0 - g) > wrench_tol:
             return _empty(rows)
@@ -245,8 +246,7 @@ def com_region(polytope: Polytope, force: np.ndarray, moment: np.ndarray, *,
     # the disc of radius 1 / search_radius, itself inside conv(d) for a region within the
     # search radius (they are redundant).
     if rows >= 3 and float(h.min()) > max(wrench_tol, const_tol * search_radius):
-        chain, V = _polar(N2 / h, distance_tol)
-        region = _polygon(N2, h, chain, V, None, distance_tol, rows)
+        region = _slice_polygon(N2, h, None, distance_tol, rows)
         if region.margin >= _CENTRED * distance_tol:
             return region
     return _general(N2, h, rows, const_tol=const_tol, wrench_tol=wrench_tol,
@@ -283,8 +283,27 @@ def _general(N2: np.ndarray, h: np.ndarray, rows: int, *, const_tol: float,
         return _empty(rows)
     if radius <= distance_tol:
         return _thin(nh, hh, x0, distance_tol, rows)
-    chain, V = _polar(N2 / (h - x0 @ N2), distance_tol)
-    return _polygon(N2, h, chain, V, x0, distance_tol, rows)
+    return _slice_polygon(N2, h, x0, distance_tol, rows)
+
+
+def _slice_polygon(N2: np.ndarray, h: np.ndarray, x0: np.ndarray | None, tol: float,
+                   rows: int) -> ComRegion:
+    """
+    Return the polygon of the lines ``N2^T delta <= h`` about the interior point ``x0``.
+
+    Steps (6-7): compiled (:func:`awp_ros.geometry.kernels.polygon_region`) when the
+    kernels are enabled, else :func:`_polar` and :func:`_polygon` (the numpy reference).
+    """
+    if kernels.ENABLED:
+        out = kernels.polygon_region(N2, h, x0, tol, _PARALLEL)
+        if out is None:
+            raise InputError(_UNBOUNDED)
+        A, b, V, margin = out
+        return ComRegion(2, V, A, b, margin,
+                         {'rows': rows, 'interior_point': np.zeros(2) if x0 is None else x0})
+    shifted = N2 / h if x0 is None else N2 / (h - x0 @ N2)
+    chain, V = _polar(shifted, tol)
+    return _polygon(N2, h, chain, V, x0, tol, rows)
 
 
 @lru_cache(maxsize=128)
@@ -541,14 +560,14 @@ def _chebyshev_lp(nh: np.ndarray, hh: np.ndarray, box: float) -> tuple[np.ndarra
 def _interval(alpha: np.ndarray, beta: np.ndarray, const_tol: float, beta_tol: float,
               tol: float) -> tuple[float, float] | None:
     """Return ``[lo, hi]`` of ``{t : alpha t <= beta}``, None when empty (within ``tol``)."""
-    const = np.abs(alpha) <= const_tol
-    if np.any(const & (beta < -beta_tol)):
-        return None
     pos, neg = alpha > const_tol, alpha < -const_tol
+    const = ~(pos | neg)
+    if const.any() and float(beta[const].min()) < -beta_tol:
+        return None
     if not (pos.any() and neg.any()):
         raise InputError(_UNBOUNDED)
-    hi = float(np.min(beta[pos] / alpha[pos]))
-    lo = float(np.max(beta[neg] / alpha[neg]))
+    hi = float((beta[pos] / alpha[pos]).min())
+    lo = float((beta[neg] / alpha[neg]).max())
     if lo > hi + tol:
         return None
     return lo, hi
@@ -579,23 +598,27 @@ def _thin(nh: np.ndarray, hh: np.ndarray, x: np.ndarray, tol: float,
 def _segment(origin: np.ndarray, u: np.ndarray, lo: float, hi: float, tol: float,
              rows: int) -> ComRegion:
     """Return the segment ``origin + t u``, ``t in [lo, hi]`` (a point when shorter than tol)."""
-    u = u / np.linalg.norm(u)
+    ox, oy = np.asarray(origin, dtype=float).tolist()
+    ux, uy = np.asarray(u, dtype=float).tolist()
+    norm = math.hypot(ux, uy)
+    ux, uy = ux / norm, uy / norm
     if hi - lo <= tol:
-        return _point(origin + 0.5 * (lo + hi) * u, rows)
-    nu = np.array([-u[1], u[0]])
-    V = np.vstack((origin + lo * u, origin + hi * u))
-    A = np.vstack((nu, -nu, u, -u))
-    c = float(nu @ origin)
-    s = float(u @ origin)
+        t = 0.5 * (lo + hi)
+        return _point(np.array([ox + t * ux, oy + t * uy]), rows)
+    p = (ox + lo * ux, oy + lo * uy)
+    q = (ox + hi * ux, oy + hi * uy)
+    c = uy * -ox + ux * oy                           # nu = (-u_y, u_x): nu . origin
+    s = ux * ox + uy * oy
+    A = np.array([[-uy, ux], [uy, -ux], [ux, uy], [-ux, -uy]])
     b = np.array([c, -c, s + hi, -(s + lo)])
-    return ComRegion(1, V, A, b, -_distance_to_segment(V[0], V[1]), {'rows': rows})
+    return ComRegion(1, np.array([p, q]), A, b, -_distance_to_segment(p, q), {'rows': rows})
 
 
-def _distance_to_segment(p: np.ndarray, q: np.ndarray) -> float:
-    """Return the distance of 0 to the segment ``[p, q]``."""
-    e = q - p
-    t = min(1.0, max(0.0, -float(p @ e) / float(e @ e)))
-    return float(np.linalg.norm(p + t * e))
+def _distance_to_segment(p: tuple[float, float], q: tuple[float, float]) -> float:
+    """Return the distance of 0 to the segment ``[p, q]`` (points as pairs of floats)."""
+    ex, ey = q[0] - p[0], q[1] - p[1]
+    t = min(1.0, max(0.0, -(p[0] * ex + p[1] * ey) / (ex * ex + ey * ey)))
+    return math.hypot(p[0] + t * ex, p[1] + t * ey)
 
 
 def _point(x: np.ndarray, rows: int) -> ComRegion:
@@ -610,6 +633,17 @@ def _empty(rows: int) -> ComRegion:
     """Return the empty region."""
     return ComRegion(-1, np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), float('nan'),
                      {'rows': rows})
+
+
+def _svd(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Return the full SVD of ``G`` (k, 2); one row (a hyperplane hull) in closed form."""
+    if G.shape[0] == 1:
+        gx, gy = G[0].tolist()
+        s = math.hypot(gx, gy)
+        if s > 0.0:
+            return np.ones((1, 1)), np.array([s]), np.array([[gx / s, gy / s],
+                                                             [-gy / s, gx / s]])
+    return np.linalg.svd(G, full_matrices=True)
 
 
 def _wrench(force: np.ndarray, moment: np.ndarray) -> list[float]:

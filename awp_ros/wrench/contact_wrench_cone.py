@@ -41,7 +41,7 @@ import numpy as np
 
 from awp_ros.errors import InputError
 from awp_ros.geometry import kernels
-from awp_ros.geometry.linalg import (cross3, distinct_columns, orthonormal_span,
+from awp_ros.geometry.linalg import (cross3, distinct_columns, GRAM_CERTIFY, orthonormal_span,
                                      subset_cross_products, subset_tree, SubsetTree, workspace)
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.wrench.wrench_polytope import lift_points
@@ -190,10 +190,16 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
         return Polytope(0, np.zeros((1, 6)), np.zeros((0, 6)), np.zeros(0), origin,
                         np.zeros((6, 0)), {'kind': 'cone', 'rays': np.zeros((0, 6))})
     rays = _cached_rays(np.ascontiguousarray(N_).tobytes(), mu.tobytes(), sides)
-    lifted = lift_rays(P, rays).reshape(K * sides, 6)
-    lifted /= np.sqrt(np.einsum('ij,ij->i', lifted, lifted))[:, None]
+    full = False
+    if kernels.ENABLED and K >= 3 and K * sides <= kernels.MAX_BITS:
+        lifted, full = kernels.lifted_rays(P, rays, max(span_tol ** 2, GRAM_CERTIFY))
+    if full:                                    # certified as orthonormal_span would
+        U = np.eye(6)
+    else:
+        lifted = lift_rays(P, rays).reshape(K * sides, 6)
+        lifted /= np.sqrt(np.einsum('ij,ij->i', lifted, lifted))[:, None]
+        U = orthonormal_span(lifted, rtol=span_tol)
     meta = {'kind': 'cone', 'rays': lifted}
-    U = orthonormal_span(lifted, rtol=span_tol)
     r = U.shape[1]
     rh = lifted if r == 6 else lifted @ U                               # (K N, r)
     subsets, tree = _candidates(K, sides, r, tuple(bool(m == 0.0) for m in mu))

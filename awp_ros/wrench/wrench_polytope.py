@@ -21,10 +21,11 @@ from __future__ import annotations
 import numpy as np
 
 from awp_ros.errors import InputError
-from awp_ros.geometry.linalg import cross3
+from awp_ros.geometry import kernels
+from awp_ros.geometry.linalg import cross3, GRAM_CERTIFY
 from awp_ros.geometry.lp import chebyshev_ball
 from awp_ros.geometry.polytope import Polytope
-from awp_ros.geometry.zonotope import zonotope
+from awp_ros.geometry.zonotope import facet_subsets, zonotope, ZONOTOPE_TOLS
 
 __all__ = ['actuation_wrench_polytope', 'feasible_wrench_polytope', 'lift', 'lift_matrices',
            'lift_points']
@@ -94,6 +95,15 @@ def actuation_wrench_polytope(positions: np.ndarray, centers: np.ndarray,
     K = P.shape[0]
     if K == 0:
         return zonotope(np.zeros(6), np.zeros((6, 0)), with_vertices=with_vertices)
+    if kernels.ENABLED and 3 <= K <= kernels.MAX_BITS // 3 and not with_vertices:
+        tol = {**ZONOTOPE_TOLS, **zonotope_tols}
+        fused = kernels.lifted_zonotope(P, C, H, facet_subsets(3 * K), tol['zero_tol'],
+                                        max(tol['span_tol'] ** 2, GRAM_CERTIFY),
+                                        tol['rank_tol'], tol['incidence_tol'])
+        if fused is not None:       # full-dimensional (else the general code decides)
+            A, b, c = fused
+            return Polytope(6, np.zeros((0, 6)), A, b, c, np.eye(6),
+                            {'kind': 'zonotope', 'generators': 3 * K})
     # One lift for the centre and the three generators of every leg: (K, 4, 6).
     lifted = lift_points(P, np.concatenate([C[:, None, :], H.transpose(0, 2, 1)], axis=1))
     center = np.sum(lifted[:, 0, :], axis=0)
