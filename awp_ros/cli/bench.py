@@ -258,12 +258,14 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     with :data:`awp_ros.geometry.kernels.ENABLED` off, then on, ``repeats`` times interleaved
     in this process (medians): the force parallelepipeds, the AWP, the contact wrench cone
     with new feet every call (its facets searched) and along a stream (the feet moving 10 um
-    per call: the last facets verified and reused).
+    per call: the last facets verified and reused), and the two CoM regions of the per-cycle
+    stage (support region of the CWC, FWP region: the polygon step compiled).
     """
     from awp_ros.geometry import kernels
     from awp_ros.wrench import contact_wrench_cone as cwc
     from awp_ros.wrench.force_polytope import parallelepipeds
-    from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope
+    from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope, \
+        feasible_wrench_polytope
 
     rng = np.random.default_rng(seed)
     base = evaluator.standing_state()
@@ -277,14 +279,18 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     for q in q0 + rng.uniform(-spread, spread, size=(samples, q0.size)):
         kin = evaluator.model.kinematics(evaluator.model.joint_vector(dict(zip(names, q))), feet)
         pp = parallelepipeds(np.array(kin.J), np.array(kin.bias), lo, hi)
+        awp = actuation_wrench_polytope(kin.p_foot__com, pp['center'], pp['generators'])
+        cone = cwc.contact_wrench_cone(kin.p_foot__com, normals, mus)
         cases.append((kin.p_foot__com, np.array(kin.J), np.array(kin.bias), pp['center'],
-                      pp['generators']))
+                      pp['generators'], cone, feasible_wrench_polytope(awp, cone), kin.wrench))
     steps = {
         'force parallelepipeds': lambda c, i: parallelepipeds(c[1], c[2], lo, hi),
         'AWP zonotope': lambda c, i: actuation_wrench_polytope(c[0], c[3], c[4]),
         'CWC, new feet every call': lambda c, i: cwc.contact_wrench_cone(c[0], normals, mus),
         'CWC along a stream': lambda c, i: cwc.contact_wrench_cone(cases[0][0] + 1e-5 * i,
                                                                    normals, mus),
+        'support + FWP regions': lambda c, i: (com_region(c[5], c[7][:3], c[7][3:]),
+                                               com_region(c[6], c[7][:3], c[7][3:])),
     }
     times = {name: ([], []) for name in steps}
     enabled = kernels.ENABLED

@@ -16,15 +16,17 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
   (subsets in lexicographic order share long prefixes);
 * :func:`zonotope_facets`: the facet normals and support values of a full-dimensional
   zonotope of R^6 from all its 5-subsets of generators, one normal per incidence set;
+  :func:`lifted_zonotope` fuses it with the lift and the rank certificate (the AWP);
 * :func:`cone_facets`: the facets of the cone spanned by unit rays, from candidate subsets:
-  the side test stops at the first ray on each side, one normal per incidence set;
-  :func:`cone_recheck` verifies the last cycle's facets on new rays (the contact wrench
-  cone reuses them while they hold);
+  every cross product, then every side value in one matrix product, one normal per
+  incidence set; :func:`cone_recheck` verifies the last cycle's facets on new rays (the
+  contact wrench cone reuses them while they hold); :func:`lifted_rays` lifts the rays;
+* :func:`polar_hull` and :func:`polygon_region`: the CoM regions' polygons (the hull of the
+  lines' dual points, the primal vertices, short edges dropped, the margin);
 * :func:`parallelepipeds`: the force parallelepipeds of 3-joint legs (inverse by cofactors).
 
-Measured beside the numpy code in one run (``AWP_ROS_KERNELS=numpy awp_bench`` against
-``awp_bench``, the README's speed section): 2.5x on the force polytopes, 1.3x on the AWP, and
-the contact wrench cone 6x when its facets are reused.
+Each is measured beside its numpy code, interleaved in one process, by ``awp_bench
+--kernels`` (the README's speed section has the figures).
 
 The kernels work in R^6 (full-dimensional sets: three or more stance legs), with the wedge
 tables as constants so that the compiler unrolls them (2-3x over tables passed at run time);
@@ -373,52 +375,44 @@ def zonotope_facets(g: np.ndarray, norms: np.ndarray, subsets: np.ndarray, rank_
                             float(rank_tol), float(incidence_tol))
 
 
-@_jit(inline=True)
-def _cone_row(n, vol, R, side_tol, A, masks, multi, kept, rows, s):
-    """Store the facet of cross product ``n`` (length ``vol``) at row ``kept`` if it is one."""
-    N, r = R.shape
-    slack = side_tol * vol
-    above = False
-    below = False
-    for j in range(N):
-        dot = _dot(n, R, j)
-        if dot > slack:
-            above = True
-        elif dot < -slack:
-            below = True
-        if above and below:
-            return kept
-    scale = (-1.0 if above else 1.0) / vol
-    mask = 0
-    count = 0
-    for j in range(N):
-        if abs(_dot(n, R, j)) <= slack:
-            mask |= 1 << j
-            count += 1
-    for i in range(r):
-        A[kept, i] = n[i] * scale
-    masks[kept] = mask
-    multi[kept] = count > r - 1
-    rows[kept] = s
-    return kept + 1
-
-
 @_jit
 def _cone_facets(R, subsets, side_tol, rank_tol):
     N, r = R.shape
     n_sub = subsets.shape[0]
     V = np.ascontiguousarray(R.T)
+    # Every candidate's cross product, then every side value in one product: the early
+    # exit of a side test per candidate mispredicts its branches (2.5x slower, measured).
+    normals = _cross_products(V, subsets)
+    sides = normals @ V                                  # (n_sub, N): a_s . ray_j
     A = np.empty((n_sub, r))
     masks = np.empty(n_sub, dtype=np.int64)
     multi = np.zeros(n_sub, dtype=np.bool_)
     rows = np.empty(n_sub, dtype=np.int64)
-    W, prev, n = _scratch()
     kept = 0
     for s in range(n_sub):
-        _subset_normal6(V, subsets, s, prev, W, n)
-        vol = np.sqrt(_norm2(n))
-        if vol > rank_tol:
-            kept = _cone_row(n, vol, R, side_tol, A, masks, multi, kept, rows, s)
+        vol = np.sqrt(_norm2(normals[s]))
+        if not vol > rank_tol:
+            continue
+        slack = side_tol * vol
+        top, low = -np.inf, np.inf
+        for j in range(N):
+            top = max(top, sides[s, j])
+            low = min(low, sides[s, j])
+        if top > slack and low < -slack:
+            continue                                     # rays on both sides: no facet
+        scale = (-1.0 if top > slack else 1.0) / vol
+        mask = 0
+        count = 0
+        for j in range(N):
+            if abs(sides[s, j]) <= slack:
+                mask |= np.int64(1) << j
+                count += 1
+        for i in range(r):
+            A[kept, i] = normals[s, i] * scale
+        masks[kept] = mask
+        multi[kept] = count > r - 1
+        rows[kept] = s
+        kept += 1
     keep = _first_of_each(masks[:kept], multi[:kept])
     return A[:kept][keep], rows[:kept][keep], masks[:kept][keep]
 

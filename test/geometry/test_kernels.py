@@ -188,3 +188,100 @@ def test_parallelepipeds_equal_the_numpy_reference():
     for k in (0, 1, 2, 4):
         tau = bias[k] - fast['vertices'][k] @ J[k]
         assert np.all((np.abs(tau - lo[k]) < 1e-6) | (np.abs(tau - hi[k]) < 1e-6))
+
+
+def _numpy(function, *args, **kwargs):
+    """Return ``function(*args, **kwargs)`` with the kernels disabled (the numpy reference)."""
+    kernels.ENABLED = False
+    try:
+        return function(*args, **kwargs)
+    finally:
+        kernels.ENABLED = True
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_polar_hull_is_the_convex_hull(seed):
+    """Against qhull: random clouds, points on a grid (ties, collinear), points on a circle."""
+    rng = np.random.default_rng(seed)
+    for trial in range(150):
+        m = int(rng.integers(3, 1500))
+        D = rng.normal(size=(2, m))
+        if trial % 3 == 1:
+            D = np.round(D, 1)
+        elif trial % 3 == 2:
+            th = rng.uniform(0.0, 2.0 * np.pi, size=m)
+            D = np.vstack([np.cos(th), np.sin(th)]) * rng.uniform(0.5, 2.0)
+        chain = kernels.polar_hull(D)
+        ref = ConvexHull(D.T).vertices
+        assert {tuple(x) for x in D[:, chain].T} == {tuple(x) for x in D[:, ref].T}
+        V = D[:, chain]
+        e1, e2 = np.roll(V, -1, axis=1) - V, np.roll(V, -2, axis=1) - V
+        turn = e1[0] * e2[1] - e1[1] * e2[0]
+        assert np.all(turn > 0.0)                    # counter-clockwise, strictly convex
+
+
+def _lines(rng, m, inside=True):
+    """Return random lines ``N2^T delta <= h`` (unit normals) of a bounded polygon [m]."""
+    th = rng.uniform(0.0, 2.0 * np.pi, size=m)
+    N2 = np.vstack([np.cos(th), np.sin(th)])
+    h = rng.uniform(0.05, 0.5, size=m) + (0.0 if inside else -0.6) * (th < 0.5)
+    return N2 * rng.uniform(0.5, 3.0, size=m), h
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_com_region_polygons_equal_the_numpy_reference(seed):
+    """The compiled polygon step of com_region against _polar / _polygon, CoM in and out."""
+    from awp_ros.wrench import com_region as cr
+    rng = np.random.default_rng(seed)
+    for trial in range(200):
+        N2, h = _lines(rng, int(rng.integers(8, 400)), inside=trial % 4 != 3)
+        x0 = None if np.all(h > 0.0) else cr._chebyshev((N2 / np.hypot(*N2)).T,
+                                                          h / np.hypot(*N2), 100.0, 1e-9)[0]
+        if x0 is not None and np.min(h - x0 @ N2) <= 1e-6:
+            continue
+        fast = cr._slice_polygon(N2, h, x0, 1e-9, h.size)
+        slow = _numpy(cr._slice_polygon, N2, h, x0, 1e-9, h.size)
+        assert fast.vertices.shape == slow.vertices.shape
+        shift = int(np.argmin(np.linalg.norm(slow.vertices - fast.vertices[0], axis=1)))
+        np.testing.assert_allclose(np.roll(slow.vertices, -shift, axis=0), fast.vertices,
+                                   atol=1e-12)
+        np.testing.assert_allclose(np.roll(slow.A, -shift, axis=0), fast.A, atol=1e-12)
+        np.testing.assert_allclose(np.roll(slow.b, -shift), fast.b, atol=1e-12)
+        assert fast.margin == pytest.approx(slow.margin, abs=1e-12)
+
+
+@pytest.mark.parametrize('seed', range(4))
+def test_lifted_zonotope_equals_the_numpy_awp(seed):
+    from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope
+    rng = np.random.default_rng(seed)
+    K = 3 + seed % 2
+    p = rng.normal(size=(K, 3)) * 0.3
+    p[:, 2] = -0.5
+    C, H = rng.normal(size=(K, 3)) * 50.0, rng.normal(size=(K, 3, 3)) * 100.0
+    fast = actuation_wrench_polytope(p, C, H)
+    slow = _numpy(actuation_wrench_polytope, p, C, H)
+    assert fast.dimension == slow.dimension == 6
+    np.testing.assert_allclose(fast.A, slow.A, atol=1e-12)
+    np.testing.assert_allclose(fast.b, slow.b, rtol=1e-12, atol=1e-8)
+    np.testing.assert_allclose(fast.hull_origin, slow.hull_origin, atol=1e-10)
+    # not full-dimensional (every foot at one point: the generators span 3 dimensions) or
+    # a zero generator: the kernel declines, the general code gives the reference's answer
+    for P, G in ((np.zeros((K, 3)), H), (p, np.concatenate([H[:1] * 0.0, H[1:]]))):
+        assert kernels.lifted_zonotope(P, C, G, _combinations(3 * K, 5)[0], 1e-12, 1e-10,
+                                       1e-9, 1e-9) is None
+        a, b = actuation_wrench_polytope(P, C, G), _numpy(actuation_wrench_polytope, P, C, G)
+        assert a.dimension == b.dimension
+        np.testing.assert_allclose(a.A, b.A, atol=1e-12)
+    assert actuation_wrench_polytope(np.zeros((K, 3)), C, H).dimension == 3
+
+
+def test_lifted_rays_are_the_unit_lifts_and_certify_the_rank():
+    rng = np.random.default_rng(7)
+    p, n, mu = _cwc_rays(rng)
+    rays = np.asarray(_cached_rays(np.ascontiguousarray(n).tobytes(), mu.tobytes(), 4))
+    R, full = kernels.lifted_rays(p, rays, 1e-10)
+    ref = lift_rays(p, rays).reshape(-1, 6)
+    np.testing.assert_allclose(R, ref / np.linalg.norm(ref, axis=1)[:, None], atol=1e-15)
+    assert full
+    _, full = kernels.lifted_rays(np.zeros_like(p), rays, 1e-10)   # all feet at one point
+    assert not full
