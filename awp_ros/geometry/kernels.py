@@ -54,7 +54,7 @@ try:  # numba is a dependency; without it (or AWP_ROS_KERNELS=numpy) the numpy c
 except ImportError:  # pragma: no cover - exercised only on installs without numba
     numba = None
 
-__all__ = ['ENABLED', 'MAX_BITS', 'cone_facets', 'cone_recheck', 'cross_products', 'lifted_rays', 'lifted_zonotope',
+__all__ = ['ENABLED', 'MAX_BITS', 'cone_facets', 'cone_recheck', 'cross_products', 'flat_cone_facets', 'flat_zonotope_facets', 'lifted_rays', 'lifted_zonotope',
            'parallelepipeds', 'polar_hull', 'polygon_region', 'wedge_tables', 'zonotope_facets']
 
 #: Whether the compiled kernels are used (numba importable and not disabled).
@@ -340,6 +340,149 @@ def lifted_zonotope(positions: np.ndarray, centers: np.ndarray, generators: np.n
                                    float(zero_tol), float(certify), float(rank_tol),
                                    float(incidence_tol))
     return (A, b, c) if ok else None
+
+
+@_jit(inline=True)
+def _subset_normal_any(V, subsets, s, prev, W, out, src, row, sign, size):
+    """:func:`_subset_normal6` in R^d, d = ``V.shape[0]``, with the tables passed in."""
+    d = V.shape[0]
+    start = 0
+    while start < d - 1 and subsets[s, start] == prev[start]:
+        start += 1
+    for k in range(start, d - 1):
+        j = subsets[s, k]
+        prev[k] = j
+        if k == 0:
+            for i in range(d):
+                W[0, i] = V[i, j]
+        else:
+            for o in range(size[k + 1]):
+                acc = 0.0
+                for t in range(k + 1):
+                    acc += sign[k, o, t] * W[k - 1, src[k, o, t]] * V[row[k, o, t], j]
+                W[k, o] = acc
+    for i in range(d):                   # n_i = (-1)^i W_{[d] \ {i}}, that subset d - 1 - i
+        out[i] = W[d - 2, d - 1 - i] if i % 2 == 0 else -W[d - 2, d - 1 - i]
+
+
+@_jit
+def _flat_zonotope_facets(g, norms, subsets, src, row, sign, size, rank_tol, incidence_tol):
+    r, m = g.shape
+    n_sub = subsets.shape[0]
+    a = np.empty((n_sub, r))
+    h = np.empty(n_sub)
+    masks = np.empty(n_sub, dtype=np.int64)
+    multi = np.zeros(n_sub, dtype=np.bool_)
+    U = np.empty((r, m))
+    for i in range(r):
+        for j in range(m):
+            U[i, j] = g[i, j] / norms[j]
+    W = np.empty((r - 1, 20))
+    prev = np.full(r - 1, -1, dtype=np.int64)
+    n = np.empty(r)
+    kept = 0
+    for s in range(n_sub):
+        _subset_normal_any(U, subsets, s, prev, W, n, src, row, sign, size)
+        vol = np.sqrt(_norm2(n))
+        if not vol > rank_tol:
+            continue
+        total = 0.0
+        mask = 0
+        count = 0
+        for j in range(m):
+            dot = 0.0
+            for i in range(r):
+                dot += n[i] * g[i, j]
+            dot = abs(dot) / vol
+            total += dot
+            if dot <= incidence_tol * norms[j]:
+                mask |= np.int64(1) << j
+                count += 1
+        for i in range(r):
+            a[kept, i] = n[i] / vol
+        h[kept] = total
+        masks[kept] = mask
+        multi[kept] = count > r - 1
+        kept += 1
+    keep = _first_of_each(masks[:kept], multi[:kept])
+    return a[keep], h[keep]
+
+
+def flat_zonotope_facets(g: np.ndarray, norms: np.ndarray, subsets: np.ndarray,
+                         rank_tol: float, incidence_tol: float) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return :func:`zonotope_facets` of a zonotope of R^r, 3 <= r <= 5 (hull coordinates).
+
+    The flat AWP of two stance legs (r = 5) and the like: the same equations and rows with
+    the wedge tables of R^r passed at run time (few subsets: the call overhead counts).
+    """
+    r = g.shape[0]
+    src, row, sign, size = wedge_tables(r)
+    return _flat_zonotope_facets(np.ascontiguousarray(g, dtype=float),
+                                 np.ascontiguousarray(norms, dtype=float),
+                                 np.ascontiguousarray(subsets, dtype=np.int64), src, row, sign,
+                                 size, float(rank_tol), float(incidence_tol))
+
+
+@_jit
+def _flat_cone_facets(R, subsets, src, row, sign, size, side_tol, rank_tol):
+    N, r = R.shape
+    n_sub = subsets.shape[0]
+    V = np.ascontiguousarray(R.T)
+    A = np.empty((n_sub, r))
+    masks = np.empty(n_sub, dtype=np.int64)
+    multi = np.zeros(n_sub, dtype=np.bool_)
+    rows = np.empty(n_sub, dtype=np.int64)
+    W = np.empty((r - 1, 20))
+    prev = np.full(r - 1, -1, dtype=np.int64)
+    n = np.empty(r)
+    dots = np.empty(N)
+    kept = 0
+    for s in range(n_sub):
+        _subset_normal_any(V, subsets, s, prev, W, n, src, row, sign, size)
+        vol = np.sqrt(_norm2(n))
+        if not vol > rank_tol:
+            continue
+        slack = side_tol * vol
+        top, low = -np.inf, np.inf
+        for j in range(N):
+            acc = 0.0
+            for i in range(r):
+                acc += n[i] * R[j, i]
+            dots[j] = acc
+            top = max(top, acc)
+            low = min(low, acc)
+        if top > slack and low < -slack:
+            continue
+        scale = (-1.0 if top > slack else 1.0) / vol
+        mask = 0
+        count = 0
+        for j in range(N):
+            if abs(dots[j]) <= slack:
+                mask |= np.int64(1) << j
+                count += 1
+        for i in range(r):
+            A[kept, i] = n[i] * scale
+        masks[kept] = mask
+        multi[kept] = count > r - 1
+        rows[kept] = s
+        kept += 1
+    keep = _first_of_each(masks[:kept], multi[:kept])
+    return A[:kept][keep]
+
+
+def flat_cone_facets(rays: np.ndarray, subsets: np.ndarray, side_tol: float,
+                     rank_tol: float) -> np.ndarray:
+    """
+    Return :func:`cone_facets`' normals for unit rays of R^r, 3 <= r <= 5 (hull coordinates).
+
+    The flat contact wrench cone of two stance legs (r = 5): the same equations and rows,
+    the wedge tables of R^r passed at run time.
+    """
+    R = np.ascontiguousarray(rays, dtype=float)
+    src, row, sign, size = wedge_tables(R.shape[1])
+    return _flat_cone_facets(R, np.ascontiguousarray(subsets, dtype=np.int64), src, row, sign,
+                             size, float(side_tol), float(rank_tol))
 
 
 @_jit
@@ -831,6 +974,10 @@ def compile_all() -> None:
     A, spans, masks = cone_facets(rays, subsets, 1e-9, 1e-9)
     cone_recheck(rays, spans, masks, 1e-9, 1e-9)
     polar_hull(g[:2])
+    g5 = g[:5]
+    subsets4 = np.array(list(combinations(range(8), 4)), dtype=np.int64)
+    flat_zonotope_facets(g5, np.linalg.norm(g5, axis=0), subsets4, 1e-9, 1e-9)
+    flat_cone_facets(g5.T / np.linalg.norm(g5.T, axis=1)[:, None], subsets4, 1e-9, 1e-9)
     lifted_rays(g[:3, :3], rng.normal(size=(3, 4, 3)), 1e-10)
     lifted_zonotope(g[:3, :3], g[3:6, :3], rng.normal(size=(3, 3, 3)),
                     np.array(list(combinations(range(9), 5)), dtype=np.int64), 1e-12, 1e-10,

@@ -86,8 +86,9 @@ def zonotope(center: np.ndarray, generators: np.ndarray, *, with_vertices: bool 
     g = G if full else U.T @ G
     # Eq. (1): a normal per valid subset (either sign), eq. (3): one per incidence set.
     subsets, tree = _combinations(G.shape[1], r - 1)
-    if kernels.ENABLED and not with_vertices and r == 6 and G.shape[1] <= kernels.MAX_BITS:
-        a, h = kernels.zonotope_facets(g, norms, subsets, rank_tol, incidence_tol)
+    if kernels.ENABLED and not with_vertices and 3 <= r <= 6 and G.shape[1] <= kernels.MAX_BITS:
+        facets = kernels.zonotope_facets if r == 6 else kernels.flat_zonotope_facets
+        a, h = facets(g, norms, subsets, rank_tol, incidence_tol)
     else:
         a, h, subsets = _facets(g, norms, subsets, tree, r, rank_tol, incidence_tol,
                                 with_vertices)

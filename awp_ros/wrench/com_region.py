@@ -211,7 +211,20 @@ def com_region(polytope: Polytope, force: np.ndarray, moment: np.ndarray, *,
     x, y = 0.0, 0.0
     rank = 0
     r = P.hull_basis.shape[1]
-    if r < 6:
+    if r == 5:                           # two stance legs: one equality, in scalars
+        (E0, E1, E2, E3, E4, E5), = P.equalities[0].tolist()
+        gx, gy = fy * E5 - fz * E4, fz * E3 - fx * E5          # G = E D
+        g = float(P.equalities[1][0]) - (E0 * fx + E1 * fy + E2 * fz + E3 * Lx + E4 * Ly
+                                         + E5 * Lz)
+        norm = math.hypot(gx, gy)
+        if not norm > const_tol:
+            if abs(g) > wrench_tol:
+                return _empty(rows)
+        else:
+            rank = 1
+            x, y = g * gx / (norm * norm), g * gy / (norm * norm)
+            null = np.array([[-gy / norm], [gx / norm]])
+    elif r < 6:
         E, e = P.equalities
         Em = E[:, 3:]                    # G = E D: only D's moment rows are non-zero
         G = np.column_stack((fy * Em[:, 2] - fz * Em[:, 1], fz * Em[:, 0] - fx * Em[:, 2]))

@@ -205,6 +205,8 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
     subsets, tree = _candidates(K, sides, r, tuple(bool(m == 0.0) for m in mu))
     if kernels.ENABLED and r == 6 and rh.shape[0] <= kernels.MAX_BITS:
         A = _kernel_facets(rh, subsets, (K, sides, r, rays.tobytes()), side_tol, rank_tol)
+    elif kernels.ENABLED and 3 <= r < 6 and rh.shape[0] <= kernels.MAX_BITS:
+        A = kernels.flat_cone_facets(rh, subsets, side_tol, rank_tol)
     else:
         A = _facets(rh, tree, r, side_tol, rank_tol)
     if r < 6:

@@ -140,18 +140,23 @@ def test_cone_recheck_equals_full_computation_along_a_random_walk():
     assert reused > 400 and rebuilt > 0       # mostly reused, and changes were detected
 
 
-def test_flat_sets_use_the_numpy_code():
-    """Two stance legs span a 5D cone and AWP: the R^6 kernels are not used, same result."""
-    rng = np.random.default_rng(2)
-    p, n, mu = _cwc_rays(rng, K=2)
-    fast = contact_wrench_cone(p, n, mu, 4)
-    assert fast.dimension == 5
-    kernels.ENABLED = False
-    try:
-        slow = contact_wrench_cone(p, n, mu, 4)
-    finally:
-        kernels.ENABLED = True
-    np.testing.assert_array_equal(fast.A, slow.A)
+@pytest.mark.parametrize('seed', range(4))
+def test_flat_sets_equal_the_numpy_code(seed):
+    """Two stance legs span a 5D cone and AWP (one leg: 3D): the flat kernels, same rows."""
+    from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope
+    rng = np.random.default_rng(seed)
+    for K, dim in ((2, 5), (1, 3)):
+        p, n, mu = _cwc_rays(rng, K=K, tilt=0.1 * seed)
+        fast = contact_wrench_cone(p, n, mu, 4 + seed % 2)
+        slow = _numpy(contact_wrench_cone, p, n, mu, 4 + seed % 2)
+        assert fast.dimension == slow.dimension == dim
+        np.testing.assert_allclose(fast.A, slow.A, atol=1e-12)
+        C, H = rng.normal(size=(K, 3)) * 50.0, rng.normal(size=(K, 3, 3)) * 100.0
+        fast = actuation_wrench_polytope(p, C, H)
+        slow = _numpy(actuation_wrench_polytope, p, C, H)
+        assert fast.dimension == slow.dimension == (5 if K == 2 else 3)
+        np.testing.assert_allclose(fast.A, slow.A, atol=1e-12)
+        np.testing.assert_allclose(fast.b, slow.b, rtol=1e-12, atol=1e-8)
 
 
 def test_contact_wrench_cone_with_reuse_equals_the_numpy_code_on_a_walk():
