@@ -259,7 +259,9 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     in this process (medians): the force parallelepipeds, the AWP, the contact wrench cone
     with new feet every call (its facets searched) and along a stream (the feet moving 10 um
     per call: the last facets verified and reused), and the two CoM regions of the per-cycle
-    stage (support region of the CWC, FWP region: the polygon step compiled).
+    stage (support region of the CWC, FWP region: the polygon step compiled); then the whole
+    per-cycle evaluation (``evaluate(state, fws=False)``) of the same postures, and along a
+    stream of close postures (:func:`stream_times`' walk), every kernel off, then on.
     """
     from awp_ros.geometry import kernels
     from awp_ros.wrench import contact_wrench_cone as cwc
@@ -276,13 +278,17 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     normals = np.tile(evaluator.config.unit_normal, (len(feet), 1))
     mus = np.full(len(feet), evaluator.config.friction_coefficient)
     cases = []
-    for q in q0 + rng.uniform(-spread, spread, size=(samples, q0.size)):
+    postures = q0 + rng.uniform(-spread, spread, size=(samples, q0.size))
+    for q in postures:
         kin = evaluator.model.kinematics(evaluator.model.joint_vector(dict(zip(names, q))), feet)
         pp = parallelepipeds(np.array(kin.J), np.array(kin.bias), lo, hi)
         awp = actuation_wrench_polytope(kin.p_foot__com, pp['center'], pp['generators'])
         cone = cwc.contact_wrench_cone(kin.p_foot__com, normals, mus)
         cases.append((kin.p_foot__com, np.array(kin.J), np.array(kin.bias), pp['center'],
                       pp['generators'], cone, feasible_wrench_polytope(awp, cone), kin.wrench))
+    walk = q0 + np.cumsum(rng.uniform(-0.002, 0.002, size=(samples, q0.size)), axis=0)
+    states = [[replace(base, joint_positions=dict(zip(names, q.tolist()))) for q in qs]
+              for qs in (postures, walk)]
     steps = {
         'force parallelepipeds': lambda c, i: parallelepipeds(c[1], c[2], lo, hi),
         'AWP zonotope': lambda c, i: actuation_wrench_polytope(c[0], c[3], c[4]),
@@ -291,6 +297,9 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
                                                                    normals, mus),
         'support + FWP regions': lambda c, i: (com_region(c[5], c[7][:3], c[7][3:]),
                                                com_region(c[6], c[7][:3], c[7][3:])),
+        'per-cycle evaluation': lambda c, i: evaluator.evaluate(states[0][i], fws=False),
+        'per-cycle evaluation, stream': lambda c, i: evaluator.evaluate(states[1][i],
+                                                                        fws=False),
     }
     times = {name: ([], []) for name in steps}
     enabled = kernels.ENABLED

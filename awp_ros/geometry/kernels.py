@@ -54,8 +54,10 @@ try:  # numba is a dependency; without it (or AWP_ROS_KERNELS=numpy) the numpy c
 except ImportError:  # pragma: no cover - exercised only on installs without numba
     numba = None
 
-__all__ = ['ENABLED', 'MAX_BITS', 'cone_facets', 'cone_recheck', 'cross_products', 'flat_cone_facets', 'flat_zonotope_facets', 'lifted_rays', 'lifted_zonotope',
-           'parallelepipeds', 'polar_hull', 'polygon_region', 'wedge_tables', 'zonotope_facets']
+__all__ = [
+    'ENABLED', 'MAX_BITS', 'cone_facets', 'cone_recheck', 'cross_products', 'flat_cone_facets',
+    'flat_zonotope_facets', 'lifted_rays', 'lifted_zonotope', 'parallelepipeds', 'polar_hull',
+    'polygon_region', 'wedge_tables', 'zonotope_facets']
 
 #: Whether the compiled kernels are used (numba importable and not disabled).
 ENABLED = numba is not None and os.environ.get('AWP_ROS_KERNELS', '') != 'numpy'
@@ -147,16 +149,16 @@ def _subset_normal6(V, subsets, s, prev, W, out):
 
 
 @_jit(inline=True)
-def _scratch():
-    """Return the prefix minors (5, 20), the last subset (5,) and a normal (6,) buffers."""
-    return np.empty((5, 20)), np.full(5, -1, dtype=np.int64), np.empty(6)
+def _scratch(r):
+    """Return the prefix minors (r - 1, 20), the last subset (r - 1,) and a normal (r,)."""
+    return np.empty((r - 1, 20)), np.full(r - 1, -1, dtype=np.int64), np.empty(r)
 
 
 @_jit
 def _cross_products(V, subsets):
     m = subsets.shape[0]
     out = np.empty((m, 6))
-    W, prev, _ = _scratch()
+    W, prev, _ = _scratch(6)
     for s in range(m):
         _subset_normal6(V, subsets, s, prev, W, out[s])
     return out
@@ -198,18 +200,20 @@ def _norm2(n):
     return acc
 
 
+@_jit(inline=True)
+def _row_buffers(n_sub, r):
+    """Return per-candidate buffers: rows (n_sub, r), incidence masks, multi flags."""
+    return (np.empty((n_sub, r)), np.empty(n_sub, dtype=np.int64),
+            np.zeros(n_sub, dtype=np.bool_))
+
+
 @_jit
 def _zonotope_facets(g, norms, subsets, rank_tol, incidence_tol):
     r, m = g.shape
     n_sub = subsets.shape[0]
-    a = np.empty((n_sub, r))
+    a, masks, multi = _row_buffers(n_sub, r)
     h = np.empty(n_sub)
-    masks = np.empty(n_sub, dtype=np.int64)
-    multi = np.zeros(n_sub, dtype=np.bool_)
-    U = np.empty((r, m))
-    for i in range(r):
-        for j in range(m):
-            U[i, j] = g[i, j] / norms[j]
+    U = g / norms                                    # unit generators (columns)
     gT = np.ascontiguousarray(g.T)
     limit = incidence_tol * norms
     normals = _cross_products(U, subsets)            # eq. (1) of every subset, then its row
@@ -248,6 +252,36 @@ def _zonotope_facets(g, norms, subsets, rank_tol, incidence_tol):
     return a[keep], h[keep]
 
 
+@_jit(inline=True)
+def _full_rank(gram, certify):
+    """
+    Return whether a Gram matrix (6, 6) certifies full rank as ``orthonormal_span`` does.
+
+    ``det(gram) / tr(gram)^6 > certify``, the determinant from the Cholesky factor's
+    diagonal (False when the factorisation breaks down).
+    """
+    trace = 0.0
+    for i in range(6):
+        trace += gram[i, i]
+    if not trace > 0.0:
+        return False
+    L = np.zeros((6, 6))
+    ratio = 1.0
+    for i in range(6):
+        for j in range(i + 1):
+            acc = gram[i, j]
+            for t in range(j):
+                acc -= L[i, t] * L[j, t]
+            if i == j:
+                if not acc > 0.0:
+                    return False
+                L[i, i] = np.sqrt(acc)
+                ratio *= acc / trace
+            else:
+                L[i, j] = acc / L[j, j]
+    return ratio > certify
+
+
 @_jit
 def _lifted_zonotope(P, C, H, subsets, zero_tol, certify, rank_tol, incidence_tol):
     K = P.shape[0]
@@ -281,26 +315,7 @@ def _lifted_zonotope(P, C, H, subsets, zero_tol, certify, rank_tol, incidence_to
     for j in range(m):
         if not norms[j] > zero_tol * top:
             return np.empty((0, 6)), np.empty(0), c, False
-    # Full rank certified as orthonormal_span does: det(G G^T) / tr^6 from a Cholesky.
-    gram = G @ G.T
-    trace = 0.0
-    for i in range(6):
-        trace += gram[i, i]
-    R = np.zeros((6, 6))
-    ratio = 1.0
-    for i in range(6):
-        for j in range(i + 1):
-            acc = gram[i, j]
-            for t in range(j):
-                acc -= R[i, t] * R[j, t]
-            if i == j:
-                if not acc > 0.0:
-                    return np.empty((0, 6)), np.empty(0), c, False
-                R[i, i] = np.sqrt(acc)
-                ratio *= acc / trace
-            else:
-                R[i, j] = acc / R[j, j]
-    if not (trace > 0.0 and ratio > certify):
+    if not _full_rank(G @ G.T, certify):
         return np.empty((0, 6)), np.empty(0), c, False
     a, h = _zonotope_facets(G, norms, subsets, rank_tol, incidence_tol)
     k = a.shape[0]
@@ -369,17 +384,10 @@ def _subset_normal_any(V, subsets, s, prev, W, out, src, row, sign, size):
 def _flat_zonotope_facets(g, norms, subsets, src, row, sign, size, rank_tol, incidence_tol):
     r, m = g.shape
     n_sub = subsets.shape[0]
-    a = np.empty((n_sub, r))
+    a, masks, multi = _row_buffers(n_sub, r)
     h = np.empty(n_sub)
-    masks = np.empty(n_sub, dtype=np.int64)
-    multi = np.zeros(n_sub, dtype=np.bool_)
-    U = np.empty((r, m))
-    for i in range(r):
-        for j in range(m):
-            U[i, j] = g[i, j] / norms[j]
-    W = np.empty((r - 1, 20))
-    prev = np.full(r - 1, -1, dtype=np.int64)
-    n = np.empty(r)
+    U = g / norms                                    # unit generators (columns)
+    W, prev, n = _scratch(r)
     kept = 0
     for s in range(n_sub):
         _subset_normal_any(U, subsets, s, prev, W, n, src, row, sign, size)
@@ -429,13 +437,9 @@ def _flat_cone_facets(R, subsets, src, row, sign, size, side_tol, rank_tol):
     N, r = R.shape
     n_sub = subsets.shape[0]
     V = np.ascontiguousarray(R.T)
-    A = np.empty((n_sub, r))
-    masks = np.empty(n_sub, dtype=np.int64)
-    multi = np.zeros(n_sub, dtype=np.bool_)
+    A, masks, multi = _row_buffers(n_sub, r)
     rows = np.empty(n_sub, dtype=np.int64)
-    W = np.empty((r - 1, 20))
-    prev = np.full(r - 1, -1, dtype=np.int64)
-    n = np.empty(r)
+    W, prev, n = _scratch(r)
     dots = np.empty(N)
     kept = 0
     for s in range(n_sub):
@@ -527,9 +531,7 @@ def _cone_facets(R, subsets, side_tol, rank_tol):
     # exit of a side test per candidate mispredicts its branches (2.5x slower, measured).
     normals = _cross_products(V, subsets)
     sides = normals @ V                                  # (n_sub, N): a_s . ray_j
-    A = np.empty((n_sub, r))
-    masks = np.empty(n_sub, dtype=np.int64)
-    multi = np.zeros(n_sub, dtype=np.bool_)
+    A, masks, multi = _row_buffers(n_sub, r)
     rows = np.empty(n_sub, dtype=np.int64)
     kept = 0
     for s in range(n_sub):
@@ -566,7 +568,7 @@ def _cone_recheck(R, spans, masks, side_tol, rank_tol):
     k = spans.shape[0]
     V = np.ascontiguousarray(R.T)
     A = np.empty((k, r))
-    W, prev, n = _scratch()
+    W, prev, n = _scratch(6)
     for s in range(k):
         _subset_normal6(V, spans, s, prev, W, n)
         vol = np.sqrt(_norm2(n))
@@ -610,25 +612,7 @@ def _lifted_rays(P, rays, certify):
             inv = 1.0 / np.sqrt(acc)
             for t in range(6):
                 R[row, t] *= inv
-    gram = R.T @ R                           # the certificate of orthonormal_span
-    trace = 0.0
-    for i in range(6):
-        trace += gram[i, i]
-    L = np.zeros((6, 6))
-    ratio = 1.0
-    for i in range(6):
-        for j in range(i + 1):
-            acc = gram[i, j]
-            for t in range(j):
-                acc -= L[i, t] * L[j, t]
-            if i == j:
-                if not acc > 0.0:
-                    return R, False
-                L[i, i] = np.sqrt(acc)
-                ratio *= acc / trace
-            else:
-                L[i, j] = acc / L[j, j]
-    return R, trace > 0.0 and ratio > certify
+    return R, _full_rank(R.T @ R, certify)
 
 
 def lifted_rays(positions: np.ndarray, rays: np.ndarray,

@@ -184,7 +184,9 @@ def test_bench_stream_qhull_ratios_and_kernels(capsys):
     assert summary['fws_vs_qhull'] == pytest.approx(rows['fws_qhull'] / rows['stream_fws'],
                                                     rel=0.01)
     assert set(summary['kernel_ratios']) == {'force parallelepipeds', 'AWP zonotope',
-                                             'CWC, new feet every call', 'CWC along a stream'}
+                                             'CWC, new feet every call', 'CWC along a stream',
+                                             'support + FWP regions', 'per-cycle evaluation',
+                                             'per-cycle evaluation, stream'}
     assert all(r > 0 for r in summary['kernel_ratios'].values())
     times = bench_cli.stream_times(FeasibilityEvaluator('hyq'), 4, fws=False)
     assert set(times) == {'stream_total'} and times['stream_total'].shape == (4,)

@@ -240,8 +240,8 @@ def test_com_region_polygons_equal_the_numpy_reference(seed):
     rng = np.random.default_rng(seed)
     for trial in range(200):
         N2, h = _lines(rng, int(rng.integers(8, 400)), inside=trial % 4 != 3)
-        x0 = None if np.all(h > 0.0) else cr._chebyshev((N2 / np.hypot(*N2)).T,
-                                                          h / np.hypot(*N2), 100.0, 1e-9)[0]
+        nn = np.hypot(*N2)
+        x0 = None if np.all(h > 0.0) else cr._chebyshev((N2 / nn).T, h / nn, 100.0, 1e-9)[0]
         if x0 is not None and np.min(h - x0 @ N2) <= 1e-6:
             continue
         fast = cr._slice_polygon(N2, h, x0, 1e-9, h.size)
