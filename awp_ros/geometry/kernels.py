@@ -943,7 +943,7 @@ def compile_all() -> None:
 
     :class:`~awp_ros.evaluation.evaluator.FeasibilityEvaluator` calls it when built, so that
     no control cycle pays for it: loading the cache takes ~0.3 s, compiling (a new install, an
-    edited module) ~10 s.
+    edited module) ~30 s.
     """
     global _COMPILED
     if _COMPILED or not ENABLED:
