@@ -207,6 +207,15 @@ def _row_buffers(n_sub, r):
             np.zeros(n_sub, dtype=np.bool_))
 
 
+@_jit(inline=True)
+def _zonotope_row(h, masks, multi, kept, total, mask, extra):
+    """Store row ``kept``'s support, incidence mask and multi flag; return the next row."""
+    h[kept] = total
+    masks[kept] = mask
+    multi[kept] = extra
+    return kept + 1
+
+
 @_jit
 def _zonotope_facets(g, norms, subsets, rank_tol, incidence_tol):
     r, m = g.shape
@@ -244,10 +253,7 @@ def _zonotope_facets(g, norms, subsets, rank_tol, incidence_tol):
                 count += 1
         a[kept, 0], a[kept, 1], a[kept, 2] = n0, n1, n2
         a[kept, 3], a[kept, 4], a[kept, 5] = n3, n4, n5
-        h[kept] = total
-        masks[kept] = mask
-        multi[kept] = count > r - 1
-        kept += 1
+        kept = _zonotope_row(h, masks, multi, kept, total, mask, count > r - 1)
     keep = _first_of_each(masks[:kept], multi[:kept])
     return a[keep], h[keep]
 
@@ -408,10 +414,7 @@ def _flat_zonotope_facets(g, norms, subsets, src, row, sign, size, rank_tol, inc
                 count += 1
         for i in range(r):
             a[kept, i] = n[i] / vol
-        h[kept] = total
-        masks[kept] = mask
-        multi[kept] = count > r - 1
-        kept += 1
+        kept = _zonotope_row(h, masks, multi, kept, total, mask, count > r - 1)
     keep = _first_of_each(masks[:kept], multi[:kept])
     return a[keep], h[keep]
 
