@@ -229,7 +229,7 @@ def com_region(polytope: Polytope, force: np.ndarray, moment: np.ndarray, *,
         Em = E[:, 3:]                    # G = E D: only D's moment rows are non-zero
         G = np.column_stack((fy * Em[:, 2] - fz * Em[:, 1], fz * Em[:, 0] - fx * Em[:, 2]))
         g = e - E @ np.array((fx, fy, fz, Lx, Ly, Lz))
-        u, s, vt = _svd(G)
+        u, s, vt = np.linalg.svd(G, full_matrices=True)
         rank = int(np.count_nonzero(s > const_tol))
         d0 = vt[:rank].T @ ((u[:, :rank].T @ g) / s[:rank]) if rank else np.zeros(2)
         if np.linalg.norm(G @ d0 - g) > wrench_tol:
@@ -646,17 +646,6 @@ def _empty(rows: int) -> ComRegion:
     """Return the empty region."""
     return ComRegion(-1, np.zeros((0, 2)), np.zeros((0, 2)), np.zeros(0), float('nan'),
                      {'rows': rows})
-
-
-def _svd(G: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return the full SVD of ``G`` (k, 2); one row (a hyperplane hull) in closed form."""
-    if G.shape[0] == 1:
-        gx, gy = G[0].tolist()
-        s = math.hypot(gx, gy)
-        if s > 0.0:
-            return np.ones((1, 1)), np.array([s]), np.array([[gx / s, gy / s],
-                                                             [-gy / s, gx / s]])
-    return np.linalg.svd(G, full_matrices=True)
 
 
 def _wrench(force: np.ndarray, moment: np.ndarray) -> list[float]:

@@ -193,12 +193,11 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
     full = False
     if kernels.ENABLED and K >= 3 and K * sides <= kernels.MAX_BITS:
         lifted, full = kernels.lifted_rays(P, rays, max(span_tol ** 2, GRAM_CERTIFY))
-    if full:                                    # certified as orthonormal_span would
-        U = np.eye(6)
     else:
         lifted = lift_rays(P, rays).reshape(K * sides, 6)
         lifted /= np.sqrt(np.einsum('ij,ij->i', lifted, lifted))[:, None]
-        U = orthonormal_span(lifted, rtol=span_tol)
+    # Full rank certified as orthonormal_span would (the kernel), else its SVD decides.
+    U = np.eye(6) if full else orthonormal_span(lifted, rtol=span_tol)
     meta = {'kind': 'cone', 'rays': lifted}
     r = U.shape[1]
     rh = lifted if r == 6 else lifted @ U                               # (K N, r)
