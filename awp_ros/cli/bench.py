@@ -15,8 +15,10 @@ rate, the FWS apart, possibly at a lower rate):
    ``fws_directional``: the 12 directional margins on it, ``fws_margin``: the Euclidean
    margin on it), and ``fws_query_lp``: membership and the 12 directional margins by
    :func:`~awp_ros.wrench.fws_queries.lp_directional_margins` (exact LPs, no H-rep);
-   ``regions_fws_cwc``: the feasible and the support region of each state (exact slices of
-   the FWS and CWC H-reps, :func:`~awp_ros.wrench.com_region.com_region`), and
+   ``regions_pair``: the feasible and the support region of each state as every cycle
+   computes them (the feasible region by exact projection,
+   :func:`~awp_ros.wrench.com_region.feasible_region`, the support region as the CWC's
+   exact slice, :func:`~awp_ros.wrench.com_region.com_region`), and
    ``regions_baseline``: both by Bretl & Lall's iterative projection with LPs
    (:func:`~awp_ros.geometry.iterative_projection.iterative_projection`, as jet-leg does;
    area tolerance 1e-6 m^2) on the first ``--baseline-samples`` of the same states.
@@ -26,11 +28,12 @@ JSON object with the medians: ``total_ms`` (the per-cycle evaluation without the
 ``fws_margin_ms`` (friction polytopes + FWS H-rep + Euclidean margin: the exact FWS margin),
 ``fws_query_lp_ms`` (friction polytopes + the LP queries),
 and ``<stage>_ms`` for every stage, the FWS's margin step alone as ``fws_margin_step_ms``;
-``regions_ms`` (both CoM regions, FWS + CWC slices), ``regions_baseline_ms`` and
-``regions_speedup`` (their ratio); the per-cycle ``regions`` stage (support and FWP regions)
-is ``regions_stage_ms``. ``batch_states_per_s``: states per second of
-:meth:`~awp_ros.evaluation.evaluator.FeasibilityEvaluator.evaluate_many` on the same postures
-(per-cycle sets, no FWS), ``loop_states_per_s`` the same by a loop of ``evaluate``.
+``regions_ms`` (both CoM regions, feasible by projection + support slice),
+``regions_baseline_ms`` and ``regions_speedup`` (their ratio); the per-cycle ``regions``
+stage (support, FWP and feasible regions) is ``regions_stage_ms``. ``batch_states_per_s``:
+states per second of :meth:`~awp_ros.evaluation.evaluator.FeasibilityEvaluator.evaluate_many`
+on the same postures (per-cycle sets, no FWS), ``loop_states_per_s`` the same by a loop of
+``evaluate``.
 ``estimation_ms``: the motion estimation of one joint state as the pipeline runs it with
 ``use_imu`` (:func:`estimation_times`), not included in ``total``.
 
@@ -60,7 +63,7 @@ from awp_ros.evaluation.evaluator import FeasibilityEvaluator, STAGES
 from awp_ros.geometry.iterative_projection import iterative_projection, torque_halfspaces
 from awp_ros.robot.state import resolve_state
 from awp_ros.runtime import tune_process
-from awp_ros.wrench.com_region import com_region
+from awp_ros.wrench.com_region import com_region, feasible_region
 from awp_ros.wrench.friction_polytope import friction_rows
 from awp_ros.wrench.fws_queries import lp_directional_margins
 
@@ -99,7 +102,7 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
     keys = list(STAGES) + ['total'] + (list(FWS_STAGES) if fws else [])
     times = {name: np.zeros(samples) for name in keys}
     if fws:
-        times['regions_fws_cwc'] = np.zeros(samples)
+        times['regions_pair'] = np.zeros(samples)
         times['regions_baseline'] = np.zeros(min(samples, max(baseline_samples, 0)))
     feasible = np.zeros(samples, dtype=bool)
     # Pass 1, the per-cycle evaluation. Results are dropped as in the node's loop (keeping
@@ -127,7 +130,7 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
                 times[name][i - warmup] = result.timings_ms[name]
             times['fws_friction'][i - warmup] = friction_ms
             times['fws_query_lp'][i - warmup] = lp_ms
-            times['regions_fws_cwc'][i - warmup] = _regions(result)
+            times['regions_pair'][i - warmup] = _regions(evaluator, result)
             if i - warmup < times['regions_baseline'].size:
                 times['regions_baseline'][i - warmup] = _regions_baseline(evaluator, base,
                                                                           result)
@@ -146,11 +149,23 @@ def _lp_query(result) -> float:
     return 1e3 * (time.perf_counter() - t0)
 
 
-def _regions(result) -> float:
-    """Return the time [ms] of the feasible and support regions (FWS and CWC slices)."""
+def _regions(evaluator: FeasibilityEvaluator, result) -> float:
+    """
+    Return the time [ms] of the feasible and the support region as every cycle computes them.
+
+    The feasible region by projection (:func:`~awp_ros.wrench.com_region.feasible_region`,
+    no FWS H-rep), the support region as the CWC's slice
+    (:func:`~awp_ros.wrench.com_region.com_region`).
+    """
     f, m = result.wrench[:3], result.wrench[3:]
+    legs = list(result.legs.values())
+    p = np.array([leg.position for leg in legs]).reshape(-1, 3)
+    rows = friction_rows(np.array([leg.normal for leg in legs]).reshape(-1, 3),
+                         np.array([leg.friction_coefficient for leg in legs]),
+                         evaluator.config.pyramid_sides)
+    forces = [leg.force_polytope for leg in legs]
     t0 = time.perf_counter()
-    com_region(result.fws.polytope, f, m)
+    feasible_region(p, forces, rows, f, m)
     com_region(result.cwc, f, m)
     return 1e3 * (time.perf_counter() - t0)
 
@@ -466,14 +481,14 @@ def main(argv: list[str] | None = None) -> int:
     for s in times:
         if s not in ('total', 'fws_query_lp', 'stream_total', 'stream_fws'):
             key = {'fws_margin': 'fws_margin_step', 'regions': 'regions_stage',
-                   'regions_fws_cwc': 'regions'}.get(s, s)
+                   'regions_pair': 'regions'}.get(s, s)
             summary[f'{key}_ms'] = round(median[s], 4)
     if times.get('regions_baseline', np.zeros(0)).size:
-        summary['regions_speedup'] = round(median['regions_baseline'] / median['regions_fws_cwc'],
+        summary['regions_speedup'] = round(median['regions_baseline'] / median['regions_pair'],
                                            1)
         if not args.json_only:     # a table row: the ratio of the two medians
             sys.stdout.write(f'{"regions_speedup":<20}{summary["regions_speedup"]:>12.1f}  '
-                             '(x: iterative projection / exact slices, CoM regions)\n')
+                             '(x: iterative projection / per-cycle exact, CoM regions)\n')
     ratios = [('total_vs_qhull', 'awp_qhull', median['total'], 'per-cycle total'),
               ('fws_vs_qhull', 'fws_qhull', summary.get('fws_per_cycle_ms'), 'FWS per cycle')]
     for key, baseline, ours, what in ratios:

@@ -43,8 +43,9 @@ class RegionTrack:
 
     ``stamps`` (N,) [ns] of the reports (joint-state stamps), ``t`` (N,) [s] from the first,
     ``stance`` (N,) number of stance feet, ``valid`` (N,) evaluated; ``margins``: region ->
-    (N,) [m] as the reports carry them (``feasible_region`` NaN where the FWS was not
-    computed for that report); ``feasible`` / ``support``: stamp [ns] -> vertices (k, 2)
+    (N,) [m] as the reports carry them (``feasible_region`` NaN where its polygon was not
+    sent with that report: every cycle by projection, else with the FWS); ``feasible`` /
+    ``support``: stamp [ns] -> vertices (k, 2)
     [m] relative to the CoM (world-aligned x/y; 2 rows: a segment, 1: a point, 0: empty).
     """
 
@@ -89,7 +90,7 @@ def read_regions(bag: str | os.PathLike, node_name: str = 'awp_node') -> RegionT
     topics = [prefix + name for name in ('report', 'feasible_region', 'support_region')
               if prefix + name in have or name == 'report']
     store = typestore()
-    stamps, stance, valid, fresh = [], [], [], []
+    stamps, stance, valid = [], [], []
     margins: dict[str, list] = {name: [] for name in _COLOURS}
     polygons: dict[str, dict] = {'feasible_region': {}, 'support_region': {}}
     for m in read_bag(bag, topics=topics):
@@ -100,7 +101,6 @@ def read_regions(bag: str | os.PathLike, node_name: str = 'awp_node') -> RegionT
             stamps.append(ns)
             stance.append(len(msg.stance_feet))
             valid.append(int(msg.status) <= 1)
-            fresh.append(_stamp_ns(msg.fws_stamp) == ns)
             for region in margins:
                 margins[region].append(float(getattr(msg, f'{region}_margin')))
         else:
@@ -111,7 +111,8 @@ def read_regions(bag: str | os.PathLike, node_name: str = 'awp_node') -> RegionT
     out = {k: np.array(v, dtype=float) for k, v in margins.items()}
     for v in out.values():
         v[~valid_a] = np.nan
-    out['feasible_region'][~np.array(fresh, dtype=bool)] = np.nan
+    sent = np.array([ns in polygons['feasible_region'] for ns in stamps], dtype=bool)
+    out['feasible_region'][~sent] = np.nan
     t = (stamps_a - stamps_a[0]) * 1e-9 if stamps_a.size else np.zeros(0)
     return RegionTrack(stamps_a, t, np.array(stance, dtype=int), valid_a, out,
                        polygons['feasible_region'], polygons['support_region'])
@@ -285,10 +286,8 @@ def plot_regions(track: RegionTrack, path, *, world: GaitWorld | None = None,
     for name, style in (('support_region', '-'), ('fwp_region', '-')):
         bottom.plot(track.t, track.margins[name], style, color=_COLOURS[name], lw=1.0,
                     label=f'{name.replace("_", " ")} margin')
-    fresh = np.isfinite(track.margins['feasible_region'])
-    bottom.plot(track.t[fresh], track.margins['feasible_region'][fresh], '.',
-                color=_COLOURS['feasible_region'], ms=3.5,
-                label='feasible region margin (with the FWS)')
+    bottom.plot(track.t, track.margins['feasible_region'], '-',
+                color=_COLOURS['feasible_region'], lw=1.0, label='feasible region margin')
     for i in picks:
         bottom.axvline(track.t[i], color='#888888', lw=0.7, ls=':')
     bottom.axhline(0.0, color='k', lw=0.8)

@@ -54,7 +54,7 @@ from awp_ros.geometry.polytope import Polytope
 from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.robot.model import RobotModel
 from awp_ros.robot.state import resolve_state, RobotState
-from awp_ros.wrench.com_region import com_region, ComRegion
+from awp_ros.wrench.com_region import com_region, ComRegion, feasible_region
 from awp_ros.wrench.contact_forces import measured_contact_forces
 from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone
 from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
@@ -197,6 +197,7 @@ class FeasibilityEvaluator:
         fwp_r.region = _region(fwp, w, 'FWP region', warnings)
         capture = _capture_point(vcom, p, self._gravity)
         fwp_r.capture_point_margin = _point_margin(fwp_r.region, capture)
+        feasible = self._feasible_region(p, forces, s, w)
         t8 = clock()
         timings = {'validate': 1e3 * (t1 - t0), 'model': 1e3 * (t2 - t1),
                    'force_polytopes': 1e3 * (t3 - t2), 'friction_polytopes': 1e3 * (t4 - t3),
@@ -207,7 +208,9 @@ class FeasibilityEvaluator:
                                    awp_r, fwp_r, None, warnings, timings,
                                    'quasi_static' if s.a is None else 'measured',
                                    measured, cwc=cwc, support_region=support,
-                                   com_velocity=vcom, capture_point=capture)
+                                   com_velocity=vcom, capture_point=capture,
+                                   feasible_region_per_cycle=feasible,
+                                   capture_margin_per_cycle=_point_margin(feasible, capture))
         if fws:
             self.add_fws(result)
         return result
@@ -240,7 +243,10 @@ class FeasibilityEvaluator:
             S, w, feasibility_tol=tol, hull_tol=self.hull_tol))
         t3 = clock()
         fws_r.directional = {axis: (float(a), float(b)) for axis, a, b in zip(AXES, plus, minus)}
-        fws_r.region = _region(S, w, 'feasible region', result.warnings)
+        # The same set as the FWS's slice: the per-cycle projection when there is one.
+        fws_r.region = result.feasible_region_per_cycle
+        if fws_r.region is None:
+            fws_r.region = _region(S, w, 'feasible region', result.warnings)
         fws_r.capture_point_margin = _point_margin(fws_r.region, result.capture_point)
         t4 = clock()
         result.fws = fws_r
@@ -284,11 +290,39 @@ class FeasibilityEvaluator:
             fws_r.directional = {a: (float(x), float(y)) for a, x, y in zip(AXES, plus, minus)}
         support = None if result.cwc is None else _region(result.cwc, w, 'support region',
                                                           warnings)
+        legs = list(result.legs.values())
+        feasible = None
+        if legs and result.feasible_region_per_cycle is not None:
+            feasible = feasible_region(
+                np.array([leg.position for leg in legs]),
+                [leg.force_polytope for leg in legs],
+                self._friction_rows(np.array([leg.normal for leg in legs]),
+                                    np.array([leg.friction_coefficient for leg in legs])),
+                w[:3], w[3:])
+        if fws_r is not None and feasible is not None:
+            fws_r.region = feasible
+            fws_r.capture_point_margin = _point_margin(feasible, result.capture_point)
         return replace(result, wrench=w, awp=margin(result.awp),
                        fwp=margin(result.fwp, 'FWP region'), fws=fws_r,
-                       support_region=support, warnings=warnings)
+                       support_region=support, warnings=warnings,
+                       feasible_region_per_cycle=feasible,
+                       capture_margin_per_cycle=_point_margin(feasible, result.capture_point))
 
     # -- stages ------------------------------------------------------------------------
+
+    def _feasible_region(self, p: np.ndarray, forces: list, s, w: np.ndarray
+                         ) -> ComRegion | None:
+        """
+        Return the feasible region of this cycle by projection (None: not available so).
+
+        :func:`~awp_ros.wrench.com_region.feasible_region`: the exact region without the
+        FWS's H-rep; None with no stance leg, a leg polytope that is not full-dimensional
+        (singular), no vertical force or the kernels off: the FWS's slice then gives it
+        (:meth:`add_fws`).
+        """
+        if not forces or abs(float(w[2])) <= 1e-6:
+            return None
+        return feasible_region(p, forces, self._friction_rows(s.normals, s.mus), w[:3], w[3:])
 
     def _friction_rows(self, normals: np.ndarray, mus: np.ndarray) -> np.ndarray:
         """Return the pyramid rows of the stance legs (cached while contacts are unchanged)."""

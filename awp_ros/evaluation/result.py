@@ -153,8 +153,11 @@ class FeasibilityResult:
     (counter-clockwise), ``A``, ``b``, ``dimension`` (2 polygon, 1 segment: two stance legs,
     0 point: one leg, -1 empty) and the signed ``margin`` of the CoM, NaN when empty):
     ``support_region`` (slice of the CWC ``cwc``: friction only) and ``fwp_region`` (slice
-    of the FWP) every cycle, ``feasible_region`` (slice of the FWS: torque limits and
-    friction with one force distribution) with the FWS; each None when not computed.
+    of the FWP) every cycle, ``feasible_region`` (torque limits and friction with one force
+    distribution: the FWS's slice) every cycle too, by projection
+    (``feasible_region_per_cycle``, :func:`~awp_ros.wrench.com_region.feasible_region`),
+    or from the FWS when that is not available (a singular leg); each None when not
+    computed; ``capture_margin_per_cycle`` the capture point's margin to the per-cycle one.
     ``com_velocity``: ``c'`` (3,) [m/s], world axes, when the state had a ``base_twist``
     (else None); ``capture_point``: the instantaneous capture point ``c' / omega_0``
     (``omega_0 = sqrt(g / h)``, ``h`` the CoM height above the stance feet's mean height)
@@ -179,10 +182,14 @@ class FeasibilityResult:
     support_region: ComRegion | None = None
     com_velocity: np.ndarray | None = None
     capture_point: np.ndarray | None = None
+    feasible_region_per_cycle: ComRegion | None = None
+    capture_margin_per_cycle: float = math.nan
 
     @property
     def feasible_region(self) -> ComRegion | None:
-        """Return the feasible region (the FWS's slice; None without the FWS)."""
+        """Return the feasible region: every cycle by projection, else the FWS's slice."""
+        if self.feasible_region_per_cycle is not None:
+            return self.feasible_region_per_cycle
         return None if self.fws is None else self.fws.region
 
     @property
@@ -193,6 +200,8 @@ class FeasibilityResult:
     @property
     def capture_point_margin(self) -> float:
         """Return the capture point's signed distance [m] to the feasible region, or NaN."""
+        if self.feasible_region_per_cycle is not None:
+            return self.capture_margin_per_cycle
         return math.nan if self.fws is None else self.fws.capture_point_margin
 
     @property

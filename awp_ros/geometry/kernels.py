@@ -56,8 +56,9 @@ except ImportError:  # pragma: no cover - exercised only on installs without num
 
 __all__ = [
     'ENABLED', 'MAX_BITS', 'cone_facets', 'cone_recheck', 'cross_products', 'flat_cone_facets',
-    'flat_zonotope_facets', 'lifted_rays', 'lifted_zonotope', 'parallelepipeds', 'polar_hull',
-    'polygon_region', 'wedge_tables', 'zonotope_facets']
+    'feasible_polygon', 'flat_zonotope_facets', 'leg_vertices', 'lifted_rays', 'lifted_zonotope',
+    'parallelepipeds', 'polar_hull', 'polygon_region', 'projected_polygon', 'wedge_tables',
+    'zonotope_facets']
 
 #: Whether the compiled kernels are used (numba importable and not disabled).
 ENABLED = numba is not None and os.environ.get('AWP_ROS_KERNELS', '') != 'numpy'
@@ -940,6 +941,338 @@ def polygon_region(N2: np.ndarray, h: np.ndarray, x0: np.ndarray | None, tol: fl
     return (A, b, V, float(margin)) if ok else None
 
 
+# -- the feasible region by exact iterative projection (a small simplex) ---------------------
+
+@_jit
+def _leg_vertices(A, b, tol):
+    """Return the vertices of ``{f : A f <= b}`` (R^3) by all plane triples, merged."""
+    m = A.shape[0]
+    out = np.empty((m * (m - 1) * (m - 2) // 6, 3))
+    bmax = 1.0
+    for i in range(m):
+        bmax = max(bmax, abs(b[i]))
+    slack = tol * bmax
+    n = 0
+    x = np.empty(3)
+    for i in range(m):
+        for j in range(i + 1, m):
+            cx = A[j, 1] * A[i, 2] - A[j, 2] * A[i, 1]
+            cy = A[j, 2] * A[i, 0] - A[j, 0] * A[i, 2]
+            cz = A[j, 0] * A[i, 1] - A[j, 1] * A[i, 0]
+            for k in range(j + 1, m):
+                # Cramer's rule: x = (b_i a_j x a_k + b_j a_k x a_i + b_k a_i x a_j) / det
+                jk0 = A[j, 1] * A[k, 2] - A[j, 2] * A[k, 1]
+                jk1 = A[j, 2] * A[k, 0] - A[j, 0] * A[k, 2]
+                jk2 = A[j, 0] * A[k, 1] - A[j, 1] * A[k, 0]
+                det = A[i, 0] * jk0 + A[i, 1] * jk1 + A[i, 2] * jk2
+                if abs(det) <= 1e-12:
+                    continue
+                ki0 = A[k, 1] * A[i, 2] - A[k, 2] * A[i, 1]
+                ki1 = A[k, 2] * A[i, 0] - A[k, 0] * A[i, 2]
+                ki2 = A[k, 0] * A[i, 1] - A[k, 1] * A[i, 0]
+                x[0] = (b[i] * jk0 + b[j] * ki0 - b[k] * cx) / det
+                x[1] = (b[i] * jk1 + b[j] * ki1 - b[k] * cy) / det
+                x[2] = (b[i] * jk2 + b[j] * ki2 - b[k] * cz) / det
+                ok = True
+                for r in range(m):
+                    if A[r, 0] * x[0] + A[r, 1] * x[1] + A[r, 2] * x[2] > b[r] + slack:
+                        ok = False
+                        break
+                if not ok:
+                    continue
+                for q in range(n):
+                    d = abs(out[q, 0] - x[0]) + abs(out[q, 1] - x[1]) + abs(out[q, 2] - x[2])
+                    if d <= slack:
+                        ok = False
+                        break
+                if ok:
+                    out[n, 0], out[n, 1], out[n, 2] = x[0], x[1], x[2]
+                    n += 1
+    return out[:n]
+
+
+@_jit(inline=True)
+def _simplex(T, basis, cost, kind, d, max_iter):
+    """
+    Minimise ``cost . z`` from the feasible basis of the tableau ``T = B^-1 [A | rhs]``.
+
+    Nonbasic variables are at 0, so the last column holds the basic values; ``kind[j]``: 0
+    ``z_j >= 0``, 1 free, 2 fixed at 0 (never enters; leaves when it would move). Dantzig's
+    rule, then Bland's (smallest index: no cycling) after ``max_iter / 4`` pivots. Returns
+    0 optimal, 1 unbounded, 2 iteration limit.
+    """
+    m = T.shape[0]
+    N = T.shape[1] - 1
+    for it in range(max_iter):
+        bland = it > max_iter // 4
+        for j in range(N):
+            d[j] = cost[j]
+        for i in range(m):
+            cb = cost[basis[i]]
+            if cb != 0.0:
+                for j in range(N):
+                    d[j] -= cb * T[i, j]
+        for i in range(m):
+            d[basis[i]] = 0.0
+        enter, best, direction = -1, 0.0, 1.0
+        for j in range(N):
+            if kind[j] == 2:
+                continue
+            score = abs(d[j]) if kind[j] == 1 else -d[j]
+            if score > 1e-11:
+                if bland:
+                    enter, direction = j, (1.0 if d[j] < 0.0 else -1.0)
+                    break
+                if score > best:
+                    enter, best, direction = j, score, (1.0 if d[j] < 0.0 else -1.0)
+        if enter < 0:
+            return 0
+        leave, step = -1, np.inf
+        for i in range(m):
+            alpha = direction * T[i, enter]
+            k = kind[basis[i]]
+            if k == 1:
+                continue
+            if alpha > 1e-12:
+                t = max(T[i, N], 0.0) / alpha
+            elif k == 2 and alpha < -1e-12:
+                t = 0.0
+            else:
+                continue
+            if t < step or (t == step and basis[i] < basis[leave]):
+                leave, step = i, t
+        if leave < 0:
+            return 1
+        piv = T[leave, enter]
+        for j in range(N + 1):
+            T[leave, j] /= piv
+        for i in range(m):
+            if i != leave:
+                f = T[i, enter]
+                if f != 0.0:
+                    for j in range(N + 1):
+                        T[i, j] -= f * T[leave, j]
+        basis[leave] = enter
+    return 2
+
+
+@_jit(inline=True)
+def _support_point(T, basis, cost, kind, d, u, n, out):
+    """Solve ``max u . delta`` from the current basis; write delta to ``out``; status."""
+    for j in range(cost.shape[0]):
+        cost[j] = 0.0
+    cost[n], cost[n + 1] = -u[0], -u[1]
+    status = _simplex(T, basis, cost, kind, d, 4000)
+    out[0] = out[1] = 0.0
+    N = T.shape[1] - 1
+    for i in range(T.shape[0]):
+        if basis[i] == n:
+            out[0] = T[i, N]
+        elif basis[i] == n + 1:
+            out[1] = T[i, N]
+    return status
+
+
+@_jit
+def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
+    """See :func:`projected_polygon`."""
+    n = G.shape[1]
+    m = 6 + K
+    N = n + 2 + m
+    scale = 1.0
+    for i in range(6):
+        scale = max(scale, abs(w0[i]), abs(D[i, 0]), abs(D[i, 1]))
+        for j in range(n):
+            scale = max(scale, abs(G[i, j]))
+    T = np.zeros((m, N + 1))
+    for i in range(6):
+        for j in range(n):
+            T[i, j] = G[i, j] / scale
+        T[i, n] = -D[i, 0] / scale
+        T[i, n + 1] = -D[i, 1] / scale
+        T[i, N] = w0[i] / scale
+    for j in range(n):
+        T[6 + leg[j], j] = 1.0
+    for k in range(K):
+        T[6 + k, N] = 1.0
+    # Phase 1: artificial z_{n+2+i} = |rhs_i| basic, minimise their sum.
+    basis = np.empty(m, dtype=np.int64)
+    kind = np.zeros(N, dtype=np.int64)
+    kind[n] = kind[n + 1] = 1
+    for i in range(m):
+        if T[i, N] < 0.0:
+            for j in range(N + 1):
+                T[i, j] = -T[i, j]
+        T[i, n + 2 + i] = 1.0
+        basis[i] = n + 2 + i
+    cost = np.zeros(N)
+    d = np.empty(N)
+    for i in range(m):
+        cost[n + 2 + i] = 1.0
+    status = _simplex(T, basis, cost, kind, d, 4000)
+    vertices = np.empty((max_lps + 3, 2))
+    if status != 0:
+        return vertices[:0], 2
+    infeasibility = 0.0
+    for i in range(m):
+        if basis[i] >= n + 2:
+            infeasibility += T[i, N]
+    if infeasibility > 1e-9:
+        return vertices[:0], 1
+    for i in range(m):
+        kind[n + 2 + i] = 2
+    # Support points in three directions, then every edge of the hull of the points found
+    # is tested by its outward normal until each is certified (Bretl & Lall, exact).
+    u = np.empty(2)
+    p = np.empty(2)
+    k = 0
+    lps = 0
+    for t in range(3):
+        angle = 2.0 * np.pi * t / 3.0
+        u[0], u[1] = np.cos(angle), np.sin(angle)
+        if _support_point(T, basis, cost, kind, d, u, n, p) != 0:
+            return vertices[:0], 2
+        lps += 1
+        if k > 0 and abs(p[0] - vertices[k - 1, 0]) + abs(p[1] - vertices[k - 1, 1]) <= tol:
+            continue
+        if k > 1 and abs(p[0] - vertices[0, 0]) + abs(p[1] - vertices[0, 1]) <= tol:
+            continue
+        vertices[k, 0], vertices[k, 1] = p[0], p[1]
+        k += 1
+    if k == 1:
+        return vertices[:1], 0
+    e = 0
+    while e < k:
+        a0, a1 = vertices[e, 0], vertices[e, 1]
+        b0, b1 = vertices[(e + 1) % k, 0], vertices[(e + 1) % k, 1]
+        length = np.hypot(b0 - a0, b1 - a1)
+        u[0], u[1] = (b1 - a1) / length, -(b0 - a0) / length
+        if lps >= max_lps:
+            return vertices[:0], 2
+        if _support_point(T, basis, cost, kind, d, u, n, p) != 0:
+            return vertices[:0], 2
+        lps += 1
+        if u[0] * (p[0] - a0) + u[1] * (p[1] - a1) <= tol:
+            e += 1                                   # a certified edge
+            continue
+        for q in range(k, e + 1, -1):                # insert p after vertex e
+            vertices[q, 0], vertices[q, 1] = vertices[q - 1, 0], vertices[q - 1, 1]
+        vertices[e + 1, 0], vertices[e + 1, 1] = p[0], p[1]
+        k += 1
+    return vertices[:k], 0
+
+
+@_jit
+def _feasible_polygon(FA, Fb, R, P, w0, D, tol, max_lps):
+    """See :func:`feasible_polygon`."""
+    K, m0 = FA.shape[0], FA.shape[1]
+    m = m0 + R.shape[1]
+    A = np.empty((m, 3))
+    b = np.zeros(m)
+    columns = np.empty((6, K * m * (m - 1) * (m - 2) // 6))
+    leg = np.empty(columns.shape[1], dtype=np.int64)
+    n = 0
+    for k in range(K):
+        A[:m0] = FA[k]
+        b[:m0] = Fb[k]
+        A[m0:] = R[k]
+        b[m0:] = 0.0
+        V = _leg_vertices(A, b, 1e-9)
+        if V.shape[0] == 0:
+            return np.empty((0, 2)), 1
+        for v in range(V.shape[0]):
+            x, y, z = V[v, 0], V[v, 1], V[v, 2]
+            columns[0, n], columns[1, n], columns[2, n] = x, y, z
+            columns[3, n] = P[k, 1] * z - P[k, 2] * y
+            columns[4, n] = P[k, 2] * x - P[k, 0] * z
+            columns[5, n] = P[k, 0] * y - P[k, 1] * x
+            leg[n] = k
+            n += 1
+    V, status = _projected_polygon(columns[:, :n].copy(), leg[:n], K, w0, D, tol, max_lps)
+    if status != 0:
+        return V, status
+    # Merge vertices closer than tol and vertices inside an edge (collinear neighbours).
+    k = V.shape[0]
+    keep = np.ones(k, dtype=np.bool_)
+    changed = True
+    while changed and k >= 2:
+        changed = False
+        idx = np.flatnonzero(keep)
+        c = idx.size
+        if c < 2:
+            break
+        for t in range(c):
+            i, j = idx[t - 1], idx[t]
+            if abs(V[i, 0] - V[j, 0]) + abs(V[i, 1] - V[j, 1]) <= tol:
+                keep[j] = False
+                changed = True
+                break
+            if c >= 3:
+                h = idx[(t + 1) % c]
+                e0x, e0y = V[j, 0] - V[i, 0], V[j, 1] - V[i, 1]
+                e1x, e1y = V[h, 0] - V[j, 0], V[h, 1] - V[j, 1]
+                turn = e0x * e1y - e0y * e1x
+                if turn <= 1e-12 * np.hypot(e0x, e0y) * np.hypot(e1x, e1y):
+                    keep[j] = False
+                    changed = True
+                    break
+    return V[keep].copy(), 0
+
+
+def feasible_polygon(force_A: np.ndarray, force_b: np.ndarray, rows: np.ndarray,
+                     positions: np.ndarray, w0: np.ndarray, D: np.ndarray, tol: float,
+                     max_lps: int = 400) -> tuple[np.ndarray, int]:
+    r"""
+    Return the feasible region's vertices by :func:`projected_polygon` on the legs' points.
+
+    Leg ``k``'s friction-bounded polytope ``{f : force_A[k] f <= force_b[k], rows[k] f <=
+    0}`` (torque and pyramid rows, R^3) by its vertices (:func:`leg_vertices`), lifted to
+    ``[v; p_k x v]``; the polygon's vertices closer than ``tol`` or inside an edge are
+    merged. Status as :func:`projected_polygon` (1 also for a leg that cannot push).
+    """
+    V, status = _feasible_polygon(np.ascontiguousarray(force_A, dtype=float),
+                                  np.ascontiguousarray(force_b, dtype=float),
+                                  np.ascontiguousarray(rows, dtype=float),
+                                  np.ascontiguousarray(positions, dtype=float),
+                                  np.ascontiguousarray(w0, dtype=float),
+                                  np.ascontiguousarray(D, dtype=float), float(tol),
+                                  int(max_lps))
+    return V, int(status)
+
+
+def projected_polygon(G: np.ndarray, leg: np.ndarray, K: int, w0: np.ndarray, D: np.ndarray,
+                      tol: float, max_lps: int = 400) -> tuple[np.ndarray, int]:
+    r"""
+    Return the exact polygon ``{delta : exists lam, G lam = w0 + D delta, lam in simplices}``.
+
+    ``G`` (6, n): the lifted points ``[v; p_k x v]`` of K legs (``leg`` (n,) their leg),
+    ``lam >= 0`` with ``sum lam = 1`` per leg; ``w0 + D delta`` the wrench needed with the
+    CoM moved by ``delta`` (:func:`awp_ros.wrench.com_region.com_wrench_map`). A dense
+    two-phase simplex (the rows scaled by the largest entry) finds a feasible basis, then
+    the support points ``argmax u . delta`` in three directions, then for every edge of the
+    points found its outward normal: a support point beyond the edge by more than ``tol``
+    [m] is a new vertex, else the edge is an edge of the polygon (the test of Bretl & Lall's
+    iterative projection, run until every edge is certified: no area tolerance). Each LP
+    starts from the last one's basis.
+
+    :return: ``(vertices (k, 2) counter-clockwise [m], status)``: status 0 (``k = 1`` a
+        point, ``k = 2`` a segment), 1 empty (phase 1 leaves infeasibility), 2 failed (an LP
+        unbounded or over its iteration limit, or more than ``max_lps`` LPs).
+    """
+    V, status = _projected_polygon(np.ascontiguousarray(G, dtype=float),
+                                   np.ascontiguousarray(leg, dtype=np.int64), int(K),
+                                   np.ascontiguousarray(w0, dtype=float),
+                                   np.ascontiguousarray(D, dtype=float), float(tol),
+                                   int(max_lps))
+    return V, int(status)
+
+
+def leg_vertices(A: np.ndarray, b: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """Return the vertices (k, 3) of ``{f : A f <= b}`` by all triples of rows (merged)."""
+    return _leg_vertices(np.ascontiguousarray(A, dtype=float),
+                         np.ascontiguousarray(b, dtype=float), float(tol))
+
+
 def compile_all() -> None:
     """
     Compile (or load from the disk cache) every kernel on small inputs, once per process.
@@ -970,6 +1303,13 @@ def compile_all() -> None:
                     np.array(list(combinations(range(9), 5)), dtype=np.int64), 1e-12, 1e-10,
                     1e-9, 1e-9)
     polygon_region(g[:2], np.ones(8), None, 1e-9, 1e-12)
+    box = np.vstack([np.eye(3), -np.eye(3)])
+    cube = leg_vertices(box, np.ones(6))
+    lifted = np.vstack([np.hstack([cube.T, cube.T]), np.zeros((3, 2 * cube.shape[0]))])
+    projected_polygon(lifted, np.repeat(np.arange(2), cube.shape[0]), 2, np.zeros(6),
+                      np.zeros((6, 2)), 1e-9)
+    feasible_polygon(box[None], np.ones((1, 6)), -box[None, :1], np.zeros((1, 3)), np.zeros(6),
+                     np.zeros((6, 2)), 1e-9)
     J = rng.normal(size=(2, 3, 3))
     parallelepipeds(J, g[:2, :3], -np.ones((2, 3)), np.ones((2, 3)), 1e-9)
 

@@ -286,15 +286,22 @@ def _set_regions(msg: FeasibilityReport, result: FeasibilityResult | None,
     """
     Copy the CoM regions' margins [m] (NaN when empty or not computed).
 
-    The feasible region and the capture point's margin come from ``fws`` (the latest FWS,
-    whose ``fws_stamp`` they share), the support and FWP regions from ``result``.
+    The support and FWP regions come from ``result``, the feasible region and the capture
+    point's margin too when it has them (every cycle, by projection), else from ``fws``
+    (the latest FWS, whose ``fws_stamp`` they then share).
     """
-    regions = {'feasible_region': None if fws is None else fws.region,
+    feasible = None if result is None else result.feasible_region_per_cycle
+    if feasible is not None:
+        capture = result.capture_margin_per_cycle
+    else:
+        feasible = None if fws is None else fws.region
+        capture = math.nan if fws is None else fws.capture_point_margin
+    regions = {'feasible_region': feasible,
                'support_region': None if result is None else result.support_region,
                'fwp_region': None if result is None else result.fwp.region}
     for name, region in regions.items():
         setattr(msg, f'{name}_margin', math.nan if region is None else float(region.margin))
-    msg.capture_point_margin = math.nan if fws is None else float(fws.capture_point_margin)
+    msg.capture_point_margin = float(capture)
 
 
 def region_polygon_msg(header: Header, region: ComRegion | None) -> PolygonStamped:

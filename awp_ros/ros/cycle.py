@@ -86,14 +86,16 @@ class Cycle:
 
     def feasible_region(self) -> PolygonStamped | None:
         """
-        Return the feasible region (PolygonStamped) when the FWS was computed for this message.
+        Return the feasible region (PolygonStamped): every cycle (by projection).
 
         Frame the wrench frame, points [m] relative to the CoM at ``z = 0``; a segment (two
-        stance legs) has 2 points, a point (one leg) 1, an empty region none. None when the
+        stance legs) has 2 points, a point (one leg) 1, an empty region none. Where the
+        projection is not available (a singular leg) it comes with the FWS: None when the
         FWS was not computed for this message (the reports carry the latest margin).
         """
         r = self.result
-        available = r is not None and self.fws_computed and r.fws is not None
+        available = r is not None and (r.feasible_region_per_cycle is not None
+                                       or (self.fws_computed and r.fws is not None))
         return self._cached('feasible_region', available, lambda h: region_polygon_msg(
             h, r.feasible_region))
 

@@ -90,6 +90,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import lru_cache
 import math
+from typing import Sequence
 
 import numpy as np
 from scipy.optimize import linprog
@@ -99,7 +100,7 @@ from awp_ros.errors import GeometryError, InputError
 from awp_ros.geometry import kernels
 from awp_ros.geometry.polytope import Polytope
 
-__all__ = ['ComRegion', 'com_region', 'com_wrench_map']
+__all__ = ['ComRegion', 'com_region', 'com_wrench_map', 'feasible_region']
 
 
 @dataclass(frozen=True)
@@ -264,6 +265,71 @@ def com_region(polytope: Polytope, force: np.ndarray, moment: np.ndarray, *,
             return region
     return _general(N2, h, rows, const_tol=const_tol, wrench_tol=wrench_tol,
                     distance_tol=distance_tol, search_radius=search_radius)
+
+
+# -- the feasible region by projection (every cycle, no FWS H-rep) --------------------------
+
+
+def feasible_region(positions: np.ndarray, force_polytopes: Sequence[Polytope],
+                    friction_rows: np.ndarray, force: np.ndarray, moment: np.ndarray, *,
+                    distance_tol: float = 1e-9) -> ComRegion | None:
+    r"""
+    Return the exact feasible region without the FWS's H-rep, by iterative projection.
+
+    .. math::
+
+        R = \{\delta : \exists f_k \in \mathcal F_k \cap \mathcal C_k,\;
+              \textstyle\sum_k L_k f_k = w_0 + D \delta\}
+          = \{\delta : W(\delta) \in \mathrm{FWS}\}
+
+    the same set as ``com_region(fws, force, moment)`` (eq. 2 with the FWS), computed as the
+    projection on ``delta`` of the LP of the contact forces: each leg's friction-bounded
+    polytope by its vertices (all triples of its torque and pyramid rows), the forces as
+    convex combinations of them, and :func:`awp_ros.geometry.kernels.projected_polygon`'s
+    exact iterative projection (Bretl & Lall's, every edge certified by an LP in its
+    normal, no area tolerance). About 2 LPs per vertex of a small dense simplex: cheap
+    enough for every control cycle, where the FWS's H-rep is not.
+
+    :param positions: (K, 3) stance feet relative to the CoM [m], world-aligned axes.
+    :param force_polytopes: K full-dimensional force polytopes [N] (H-rep ``A f <= b``).
+    :param friction_rows: (K, N + 1, 3) unit rows ``a . f <= 0`` of each leg's pyramid and
+        ``n . f >= 0`` (:func:`awp_ros.wrench.friction_polytope.friction_rows`).
+    :param force: ``f = m (c'' - g)`` (3,) [N]; ``moment``: ``L'`` (3,) [N.m].
+    :param distance_tol: [m] an edge is certified when no support point lies more than
+        this beyond it; shorter edges and collinear vertices are merged.
+    :return: the :class:`ComRegion` (same representation as :func:`com_region`), or None
+        when it cannot be computed this way (kernels off, a leg polytope not
+        full-dimensional, no leg, ``|f_z|`` too small, an LP failing): use
+        :func:`com_region` on the FWS then.
+    """
+    K = len(force_polytopes)
+    fx, fy, fz, *_ = _wrench(force, moment)
+    if not kernels.ENABLED or K == 0 or abs(fz) <= 1e-6 \
+            or any(F.dimension != 3 for F in force_polytopes) \
+            or len({F.A.shape for F in force_polytopes}) != 1:
+        return None
+    w0, D = com_wrench_map(force, moment)
+    V, status = kernels.feasible_polygon(np.array([F.A for F in force_polytopes]),
+                                         np.array([F.b for F in force_polytopes]),
+                                         friction_rows, positions, w0, D, distance_tol)
+    if status == 1:
+        return _empty(0)
+    if status != 0:
+        return None
+    k = V.shape[0]
+    if k == 1:
+        return _point(V[0], 0)
+    if k == 2:
+        u = V[1] - V[0]
+        length = math.hypot(u[0], u[1])
+        return _segment(V[0], u / length, 0.0, length, distance_tol, 0)
+    e = V - V[_shift(k, -1)]                        # edge j joins vertices j - 1 and j
+    length = np.hypot(e[:, 0], e[:, 1])
+    A = np.stack([e[:, 1] / length, -e[:, 0] / length], axis=1)
+    b = np.einsum('ij,ij->i', A, V)
+    inside = float(b.min())
+    margin = inside if inside >= 0.0 else -_distance_to_polygon(V)
+    return ComRegion(2, V, A, b, margin, {'rows': 0, 'interior_point': np.zeros(2)})
 
 
 # -- the polygon (full-dimensional slices) ---------------------------------------------------

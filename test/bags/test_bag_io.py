@@ -39,13 +39,43 @@ def _reader_msgs(path):
     return out
 
 
-def test_default_bag_is_regenerated_byte_for_byte(tmp_path):
+def _same_message(a, b, atol: float) -> bool:
+    """Return whether two decoded messages are equal, floats within ``atol``."""
+    if hasattr(a, '__dataclass_fields__'):
+        return type(a).__name__ == type(b).__name__ and all(
+            _same_message(getattr(a, f), getattr(b, f), atol)
+            for f in a.__dataclass_fields__)
+    if isinstance(a, np.ndarray) and a.dtype.kind == 'f':
+        return a.shape == b.shape and bool(np.allclose(a, b, rtol=0.0, atol=atol))
+    if isinstance(a, float):
+        return abs(a - b) <= atol
+    if isinstance(a, (list, tuple)):
+        return len(a) == len(b) and all(_same_message(x, y, atol) for x, y in zip(a, b))
+    return bool(np.all(a == b))
+
+
+def test_default_bag_is_regenerated_from_the_generator(tmp_path):
+    """
+    The committed bag is what the generator writes: same topics, times and messages.
+
+    Byte for byte on the machine that wrote it; another CPU's libm / SIMD rounds the gait's
+    trigonometry differently in the last bits (seen here: up to 5e-9 in IMU and joint
+    values), so the messages are compared decoded, floats within 1e-6.
+    """
     from awp_ros.gait.__main__ import main
 
     out = tmp_path / DEFAULT_BAG.name     # the file name is stored inside the bag
     assert main(['-o', str(out)]) == 0
-    assert out.read_bytes() == DEFAULT_BAG.read_bytes()
     assert DEFAULT_BAG.stat().st_size < 6_500_000     # 11.6 s at 500 Hz, IMU included [B]
+    if out.read_bytes() == DEFAULT_BAG.read_bytes():
+        return
+    assert out.stat().st_size == DEFAULT_BAG.stat().st_size
+    got, want = _reader_msgs(out), _reader_msgs(DEFAULT_BAG)
+    assert sorted(got) == sorted(want)
+    for topic, messages in want.items():
+        assert [t for t, _ in got[topic]] == [t for t, _ in messages], topic
+        for (_, a), (_, b) in zip(got[topic], messages):
+            assert _same_message(a, b, 1e-6), (topic, a, b)
 
 
 def test_default_bag_is_found_and_holds_the_three_input_topics():

@@ -163,10 +163,10 @@ def test_bench_times_the_regions_and_their_baseline(capsys):
         assert summary[key] > 0, key
     assert summary['regions_speedup'] == rows['regions_speedup']
     assert summary['regions_speedup'] == pytest.approx(
-        rows['regions_baseline'] / rows['regions_fws_cwc'], rel=0.01)
+        rows['regions_baseline'] / rows['regions_pair'], rel=0.01)
     times = bench_cli.run_benchmark(FeasibilityEvaluator('hyq'), 3, warmup=0,
                                     baseline_samples=2)
-    assert times['regions_fws_cwc'].shape == (3,) and times['regions_baseline'].shape == (2,)
+    assert times['regions_pair'].shape == (3,) and times['regions_baseline'].shape == (2,)
 
 
 def test_bench_stream_qhull_ratios_and_kernels(capsys):

@@ -290,3 +290,55 @@ def test_lifted_rays_are_the_unit_lifts_and_certify_the_rank():
     assert full
     _, full = kernels.lifted_rays(np.zeros_like(p), rays, 1e-10)   # all feet at one point
     assert not full
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2, 3])
+def test_leg_vertices_are_the_vertices_of_the_halfspaces(seed):
+    """All plane triples, merged: qhull's hull of the halfspace intersection (another method)."""
+    from scipy.spatial import HalfspaceIntersection
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(10, 3))
+    A /= np.linalg.norm(A, axis=1)[:, None]
+    b = rng.uniform(0.5, 2.0, size=10)               # 0 strictly inside
+    V = kernels.leg_vertices(A, b)
+    want = HalfspaceIntersection(np.column_stack([A, -b]), np.zeros(3)).intersections
+    hull = want[ConvexHull(want).vertices]
+    assert V.shape == hull.shape
+    gap = np.linalg.norm(V[:, None] - hull[None], axis=2)
+    assert gap.min(axis=0).max() < 1e-9 and gap.min(axis=1).max() < 1e-9
+    assert kernels.leg_vertices(np.vstack([A, -A[:1]]), np.concatenate([b, [-3.0]])).size == 0
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_projected_polygon_is_the_projection_of_the_lp(seed):
+    """Support values in 48 directions equal linprog's on the same LP; vertices feasible."""
+    from scipy.optimize import linprog
+    rng = np.random.default_rng(seed)
+    K, n = 3, 5
+    G = rng.normal(size=(6, K * n))
+    leg = np.repeat(np.arange(K), n)
+    D = rng.normal(size=(6, 2))
+    lam = rng.dirichlet(np.ones(n), size=K).ravel()
+    w0 = G @ lam                                     # delta = 0 is feasible
+    V, status = kernels.projected_polygon(G, leg, K, w0, D, 1e-10)
+    assert status == 0 and V.shape[0] >= 3
+    e = np.roll(V, -1, axis=0) - V
+    assert np.all(e[:, 0] * np.roll(e, -1, axis=0)[:, 1] - e[:, 1] * np.roll(e, -1, axis=0)[:, 0]
+                  > 0.0)                             # strictly convex, counter-clockwise
+    E = np.zeros((K, K * n))
+    E[leg, np.arange(K * n)] = 1.0
+    A_eq = np.block([[G, -D], [E, np.zeros((K, 2))]])
+    b_eq = np.concatenate([w0, np.ones(K)])
+    bounds = [(0, None)] * (K * n) + [(None, None)] * 2
+    for t in np.linspace(0.0, 2 * np.pi, 48, endpoint=False):
+        u = np.array([np.cos(t), np.sin(t)])
+        res = linprog(np.concatenate([np.zeros(K * n), -u]), A_eq=A_eq, b_eq=b_eq,
+                      bounds=bounds, method='highs')
+        assert res.status == 0
+        assert float(np.max(V @ u)) == pytest.approx(-res.fun, abs=1e-7)
+    for v in V:
+        bounds_v = [(0, None)] * (K * n) + [(v[0], v[0]), (v[1], v[1])]
+        assert linprog(np.zeros(K * n + 2), A_eq=A_eq, b_eq=b_eq, bounds=bounds_v,
+                       method='highs').status == 0
+    # No delta balances a wrench far outside: empty (status 1).
+    assert kernels.projected_polygon(G, leg, K, w0 + 1e3, D, 1e-10)[1] == 1

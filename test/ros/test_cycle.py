@@ -95,16 +95,21 @@ def test_region_polygons_and_margins_for_each_stance(evaluator, stance, dimensio
         assert math.isnan(rep.support_region_margin) and math.isnan(rep.feasible_region_margin)
 
 
-def test_feasible_region_is_sent_with_the_fws_and_the_report_carries_the_latest(evaluator):
+def test_feasible_region_is_sent_every_cycle_and_the_fws_at_its_rate(evaluator):
     pl, first = run(evaluator, FEET, fws_rate_hz=10.0)
     assert first.fws_computed and first.feasible_region() is not None
     pl.on_contacts(contacts_msg(T0 + 2 * 10**6))
     second = pl.on_joint_state(joints_msg(evaluator, T0 + 2 * 10**6, dq=0.03))
-    assert not second.fws_computed and second.feasible_region() is None
+    # The FWS waits for its rate; the feasible region (by projection) is this cycle's.
+    assert not second.fws_computed and second.feasible_region() is not None
     assert second.support_region() is not None
     rep = second.report
     assert stamp_to_ns(rep.fws_stamp) == T0 + 1000
-    assert rep.feasible_region_margin == first.result.feasible_region.margin
+    assert rep.feasible_region_margin == second.result.feasible_region.margin
+    assert rep.feasible_region_margin != first.result.feasible_region.margin
+    points = second.feasible_region().polygon.points
+    np.testing.assert_allclose([[q.x, q.y] for q in points],
+                               second.result.feasible_region.vertices, atol=1e-6)
     assert rep.support_region_margin == second.result.support_region.margin
     assert rep.support_region_margin != first.report.support_region_margin
     # The reference wrench report: the regions at the planned wrench.

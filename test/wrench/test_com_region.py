@@ -28,7 +28,7 @@ from awp_ros.geometry.polytope import Polytope
 from awp_ros.robot.config import load_config
 from awp_ros.robot.model import resolve_urdf
 from awp_ros.robot.state import RobotState
-from awp_ros.wrench.com_region import com_region, com_wrench_map, ComRegion
+from awp_ros.wrench.com_region import com_region, com_wrench_map, ComRegion, feasible_region
 from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone
 
 FEET = ('lf_foot', 'rf_foot', 'lh_foot', 'rh_foot')
@@ -520,3 +520,164 @@ def test_a_slice_the_sampled_chain_misses_falls_back_to_the_exact_hull():
         assert np.min(np.linalg.norm(region.vertices - v, axis=1)) < 1e-6
     distances = h[keep] / np.linalg.norm(N2[keep], axis=1)     # the CoM is inside
     assert region.margin == pytest.approx(float(np.min(distances)))
+
+
+# -- the feasible region every cycle: projection by LPs, without the FWS's H-rep ---------------
+
+
+def projected(ev, result, f, m):
+    """Return feasible_region() of an evaluated state at the force and moment (f, m)."""
+    legs = list(result.legs.values())
+    rows = ev._friction_rows(np.array([leg.normal for leg in legs]).reshape(-1, 3),
+                             np.array([leg.friction_coefficient for leg in legs]))
+    return feasible_region(np.array([leg.position for leg in legs]).reshape(-1, 3),
+                           [leg.force_polytope for leg in legs], rows, f, m)
+
+
+def chain_distance(V: np.ndarray, x: np.ndarray) -> float:
+    """Return the distance of x to the closed chain of vertices V (its boundary)."""
+    a, b = V, np.roll(V, -1, axis=0)
+    e = b - a
+    ee = np.maximum((e * e).sum(axis=1), 1e-300)
+    t = np.clip(((x - a) * e).sum(axis=1) / ee, 0.0, 1.0)
+    return float(np.linalg.norm(a + t[:, None] * e - x, axis=1).min())
+
+
+def assert_same_region(R: ComRegion, S: ComRegion, atol: float = 1e-9) -> None:
+    """
+    Two regions with the same dimension, boundaries within ``atol`` [m], the same margin.
+
+    Every vertex of each lies within ``atol`` of the other's boundary (a Hausdorff test: an
+    edge shorter than the methods' rounding may be one vertex in one and two in the other).
+    """
+    assert R.dimension == S.dimension
+    if R.vertices.size:
+        assert max(chain_distance(S.vertices, v) for v in R.vertices) < atol, (R, S)
+        assert max(chain_distance(R.vertices, v) for v in S.vertices) < atol, (R, S)
+    assert R.margin == pytest.approx(S.margin, abs=atol) or \
+        (np.isnan(R.margin) and np.isnan(S.margin))
+
+
+@pytest.mark.parametrize('seed, K', [(11, 4), (12, 4), (13, 3), (14, 3), (15, 4), (16, 3)])
+def test_feasible_region_by_projection_matches_the_definition(seed, K):
+    """The per-cycle feasible region: LPs of the definition, and the FWS's exact slice."""
+    ev, state, oracle, rng = random_case(seed, K)
+    result, fws, _, _ = wrench_sets(ev, state)
+    f, m = oracle.force(), np.zeros(3)
+    R = projected(ev, result, f, m)
+    assert_same_region(R, com_region(fws, f, m))
+    if R.dimension == 2:
+        check_polygon(R, lambda x: oracle.feasible(x, f, m, torque=True, friction=True), rng,
+                      count=8)
+    # A moving robot: the region for another force and moment (c'' and L' measured).
+    f2, m2 = oracle.force((0.8, -0.5, 1.5)), np.array([3.0, -6.0, 2.0])
+    R2 = projected(ev, result, f2, m2)
+    assert_same_region(R2, com_region(fws, f2, m2))
+    if R2.dimension == 2:
+        check_polygon(R2, lambda x: oracle.feasible(x, f2, m2, torque=True, friction=True),
+                      rng, count=6)
+
+
+@pytest.mark.parametrize('stance', [('lf_foot', 'rh_foot'), ('rf_foot', 'lh_foot'),
+                                    ('lf_foot',)])
+def test_feasible_region_by_projection_degenerate_cases(stance):
+    """Two legs: the same segment as the FWS's slice; one leg: the same point (or none)."""
+    base = load_config('hyq')
+    q = dict(base.standing_posture)
+    for limit in (400.0, 60.0):
+        ev = evaluator(tuple((j, -limit, limit) for foot in FEET for j in base.leg_joints[foot]))
+        state = RobotState(joint_positions=q, stance=list(stance), friction_coefficient=0.8)
+        result, fws, _, _ = wrench_sets(ev, state)
+        f, m = result.wrench[:3], result.wrench[3:]
+        R = projected(ev, result, f, m)
+        assert_same_region(R, com_region(fws, f, m))
+        assert R.dimension in (-1, len(stance) - 1)
+        assert result.feasible_region is result.feasible_region_per_cycle
+
+
+def test_feasible_region_by_projection_empty_and_unavailable():
+    """Too weak to stand: empty (NaN margin); no leg or no vertical force: not computed."""
+    base = load_config('hyq')
+    q = dict(base.standing_posture)
+    ev = evaluator(tuple((j, -15.0, 15.0) for foot in FEET for j in base.leg_joints[foot]))
+    state = RobotState(joint_positions=q, stance=list(FEET), friction_coefficient=0.7)
+    result, fws, _, _ = wrench_sets(ev, state)
+    f, m = result.wrench[:3], result.wrench[3:]
+    R = projected(ev, result, f, m)
+    assert R.dimension == -1 and np.isnan(R.margin) and com_region(fws, f, m).dimension == -1
+    assert projected(ev, result, np.array([10.0, 0.0, 0.0]), m) is None      # free fall
+    assert feasible_region(np.zeros((0, 3)), [], np.zeros((0, 5, 3)), f, m) is None
+
+
+def force_lp_support(result, u: np.ndarray) -> float:
+    """
+    Return max u . delta over the feasible region by one LP on the contact forces.
+
+    Variables ``f_k`` (torque rows of the force polytope and pyramid rows per leg) and
+    ``delta``: ``sum_k L_k f_k = w_0 + D delta`` (HiGHS, tolerances 1e-10).
+    """
+    from awp_ros.wrench.friction_polytope import friction_rows
+    legs = list(result.legs.values())
+    K = len(legs)
+    rows = friction_rows(np.array([leg.normal for leg in legs]),
+                         np.array([leg.friction_coefficient for leg in legs]), 4)
+    w0, D = com_wrench_map(result.wrench[:3], result.wrench[3:])
+    A_eq = np.zeros((6, 3 * K + 2))
+    A_eq[:, 3 * K:] = -D
+    A_ub, b_ub = [], []
+    for k, leg in enumerate(legs):
+        x, y, z = leg.position
+        A_eq[:3, 3 * k:3 * k + 3] = np.eye(3)
+        A_eq[3:, 3 * k:3 * k + 3] = [[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]]
+        H = np.vstack([leg.force_polytope.A, rows[k]])
+        block = np.zeros((H.shape[0], 3 * K + 2))
+        block[:, 3 * k:3 * k + 3] = H
+        A_ub.append(block)
+        b_ub.append(np.concatenate([leg.force_polytope.b, np.zeros(rows.shape[1])]))
+    res = linprog(np.concatenate([np.zeros(3 * K), -np.asarray(u)]), A_ub=np.vstack(A_ub),
+                  b_ub=np.concatenate(b_ub), A_eq=A_eq, b_eq=w0, bounds=(None, None),
+                  method='highs', options={'primal_feasibility_tolerance': 1e-10,
+                                           'dual_feasibility_tolerance': 1e-10})
+    assert res.status == 0, res.message
+    return float(-res.fun)
+
+
+def test_feasible_region_every_cycle_on_the_default_bag(tmp_path):
+    """Node pipeline over the default bag: at every FWS cycle the projection is its slice."""
+    from awp_ros.bags.replay import replay_bag
+    from awp_ros.robot.config import load_parameters
+    from awp_ros.ros.pipeline import Pipeline
+    values, base_dir = load_parameters('hyq', {'use_imu': True})
+    pipe = Pipeline.from_parameters(values, base_dir=base_dir)
+    seen = {'cycles': 0, 'compared': 0, 'decided': 0, 'dims': set()}
+    evaluate = pipe.on_joint_state
+
+    def check(msg, **kw):
+        cycle = evaluate(msg, **kw)
+        r = cycle.result
+        if r is not None and r.legs:
+            seen['cycles'] += 1
+            assert r.feasible_region_per_cycle is not None
+            if r.fws is not None:
+                R = r.feasible_region_per_cycle
+                S = com_region(r.fws.polytope, r.wrench[:3], r.wrench[3:])
+                # The FWS's H-rep may overshoot by ~1e-16 / rank_tol relative (its docs):
+                # up to 1.4e-7 m seen here in the CoM plane. Where the two differ by more
+                # than 1e-9 m, an LP on the contact forces decides: the projection's
+                # support value is the LP's.
+                assert_same_region(R, S, atol=5e-7)
+                gaps = [float(np.min(R.b - R.A @ v)) for v in S.vertices] \
+                    if R.dimension == 2 else []
+                if gaps and min(gaps) < -1e-9:
+                    i = int(np.argmin(R.b - R.A @ S.vertices[int(np.argmin(gaps))]))
+                    assert force_lp_support(r, R.A[i]) == pytest.approx(R.b[i], abs=1e-9)
+                    seen['decided'] += 1
+                seen['compared'] += 1
+                seen['dims'].add(r.feasible_region_per_cycle.dimension)
+        return cycle
+    pipe.on_joint_state = check
+    bag = Path(__file__).resolve().parents[2] / 'config' / 'hyq_gait.mcap'
+    replay_bag(bag, tmp_path / 'out.mcap', pipeline=pipe, outputs=['report'], progress=False,
+               copy_inputs=False)
+    assert seen['cycles'] > 5000 and seen['compared'] > 100
+    assert {1, 2} <= seen['dims']              # the trot's segments and the crawl's polygons
