@@ -66,7 +66,11 @@ def test_a_queue_too_short_for_the_backlog_loses_joint_states_but_counts_each(ro
     assert r.sent == 2000
     assert 0 < r.missing < r.sent and r.reports > 0
     assert r.reports + r.missing == r.sent          # every stamp answered or counted missing
-    assert r.node_missing_from_sequence == r.missing
+    # The node counts a loss from the next number it sees: those before the first joint state
+    # it takes (DDS's queue overflowing before its first read) have no earlier number to
+    # compare with; seen once in a full CI run: 1963 counted of 1964 lost.
+    uncounted = r.missing - r.node_missing_from_sequence
+    assert 0 <= uncounted <= 5, (r.missing, r.node_missing_from_sequence)
     assert r.status_counts.get('warning', 0) >= 1   # the loss notes
     assert set(r.status_counts) <= {'ok', 'warning'}, r.status_counts
 
