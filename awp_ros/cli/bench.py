@@ -63,7 +63,7 @@ from awp_ros.evaluation.evaluator import FeasibilityEvaluator, STAGES
 from awp_ros.geometry.iterative_projection import iterative_projection, torque_halfspaces
 from awp_ros.robot.state import resolve_state
 from awp_ros.runtime import tune_process
-from awp_ros.wrench.com_region import com_region, feasible_region
+from awp_ros.wrench.com_region import com_region
 from awp_ros.wrench.friction_polytope import friction_rows
 from awp_ros.wrench.fws_queries import lp_directional_margins
 
@@ -153,20 +153,15 @@ def _regions(evaluator: FeasibilityEvaluator, result) -> float:
     """
     Return the time [ms] of the feasible and the support region as every cycle computes them.
 
-    The feasible region by projection (:func:`~awp_ros.wrench.com_region.feasible_region`,
-    no FWS H-rep), the support region as the CWC's slice
+    The feasible region by projection
+    (:meth:`~awp_ros.evaluation.evaluator.FeasibilityEvaluator.feasible_region_at`, no FWS
+    H-rep), the support region as the CWC's slice
     (:func:`~awp_ros.wrench.com_region.com_region`).
     """
-    f, m = result.wrench[:3], result.wrench[3:]
     legs = list(result.legs.values())
-    p = np.array([leg.position for leg in legs]).reshape(-1, 3)
-    rows = friction_rows(np.array([leg.normal for leg in legs]).reshape(-1, 3),
-                         np.array([leg.friction_coefficient for leg in legs]),
-                         evaluator.config.pyramid_sides)
-    forces = [leg.force_polytope for leg in legs]
     t0 = time.perf_counter()
-    feasible_region(p, forces, rows, f, m)
-    com_region(result.cwc, f, m)
+    evaluator.feasible_region_at(legs, result.wrench)
+    com_region(result.cwc, result.wrench[:3], result.wrench[3:])
     return 1e3 * (time.perf_counter() - t0)
 
 

@@ -197,7 +197,7 @@ class FeasibilityEvaluator:
         fwp_r.region = _region(fwp, w, 'FWP region', warnings)
         capture = _capture_point(vcom, p, self._gravity)
         fwp_r.capture_point_margin = _point_margin(fwp_r.region, capture)
-        feasible = self._feasible_region(p, forces, s, w)
+        feasible = self.feasible_region_at(list(legs.values()), w)
         t8 = clock()
         timings = {'validate': 1e3 * (t1 - t0), 'model': 1e3 * (t2 - t1),
                    'force_polytopes': 1e3 * (t3 - t2), 'friction_polytopes': 1e3 * (t4 - t3),
@@ -290,15 +290,8 @@ class FeasibilityEvaluator:
             fws_r.directional = {a: (float(x), float(y)) for a, x, y in zip(AXES, plus, minus)}
         support = None if result.cwc is None else _region(result.cwc, w, 'support region',
                                                           warnings)
-        legs = list(result.legs.values())
-        feasible = None
-        if legs and result.feasible_region_per_cycle is not None:
-            feasible = feasible_region(
-                np.array([leg.position for leg in legs]),
-                [leg.force_polytope for leg in legs],
-                self._friction_rows(np.array([leg.normal for leg in legs]),
-                                    np.array([leg.friction_coefficient for leg in legs])),
-                w[:3], w[3:])
+        feasible = None if result.feasible_region_per_cycle is None else \
+            self.feasible_region_at(list(result.legs.values()), w)
         if fws_r is not None and feasible is not None:
             fws_r.region = feasible
             fws_r.capture_point_margin = _point_margin(feasible, result.capture_point)
@@ -310,19 +303,23 @@ class FeasibilityEvaluator:
 
     # -- stages ------------------------------------------------------------------------
 
-    def _feasible_region(self, p: np.ndarray, forces: list, s, w: np.ndarray
-                         ) -> ComRegion | None:
+    def feasible_region_at(self, legs: Sequence[LegResult], wrench: np.ndarray
+                           ) -> ComRegion | None:
         """
-        Return the feasible region of this cycle by projection (None: not available so).
+        Return the feasible region of evaluated legs at a wrench, by projection.
 
-        :func:`~awp_ros.wrench.com_region.feasible_region`: the exact region without the
-        FWS's H-rep; None with no stance leg, a leg polytope that is not full-dimensional
-        (singular), no vertical force or the kernels off: the FWS's slice then gives it
-        (:meth:`add_fws`).
+        :func:`~awp_ros.wrench.com_region.feasible_region` (exact, without the FWS's H-rep)
+        on the legs' positions, force polytopes and pyramids; ``wrench`` ``[f; L']`` [N,
+        N.m]. None where it is not available so (no leg, a singular leg, no vertical force,
+        numba off): the FWS's slice gives it then (:meth:`add_fws`).
         """
-        if not forces or abs(float(w[2])) <= 1e-6:
+        if not legs:
             return None
-        return feasible_region(p, forces, self._friction_rows(s.normals, s.mus), w[:3], w[3:])
+        rows = self._friction_rows(np.array([leg.normal for leg in legs]),
+                                   np.array([leg.friction_coefficient for leg in legs]))
+        return feasible_region(np.array([leg.position for leg in legs]),
+                               [leg.force_polytope for leg in legs], rows, wrench[:3],
+                               wrench[3:])
 
     def _friction_rows(self, normals: np.ndarray, mus: np.ndarray) -> np.ndarray:
         """Return the pyramid rows of the stance legs (cached while contacts are unchanged)."""

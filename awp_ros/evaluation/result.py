@@ -192,6 +192,20 @@ class FeasibilityResult:
             return self.feasible_region_per_cycle
         return None if self.fws is None else self.fws.region
 
+    def feasible_region_with(self, fws: WrenchSetResult | None
+                             ) -> tuple[ComRegion | None, float]:
+        """
+        Return the feasible region and the capture point's margin [m] to it.
+
+        This cycle's (by projection) when computed, else those of ``fws`` (the latest FWS,
+        e.g. of an earlier cycle; None and NaN without it).
+        """
+        if self.feasible_region_per_cycle is not None:
+            return self.feasible_region_per_cycle, self.capture_margin_per_cycle
+        if fws is None:
+            return None, math.nan
+        return fws.region, fws.capture_point_margin
+
     @property
     def fwp_region(self) -> ComRegion | None:
         """Return the FWP region (the FWP's slice)."""

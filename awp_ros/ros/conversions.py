@@ -290,12 +290,8 @@ def _set_regions(msg: FeasibilityReport, result: FeasibilityResult | None,
     point's margin too when it has them (every cycle, by projection), else from ``fws``
     (the latest FWS, whose ``fws_stamp`` they then share).
     """
-    feasible = None if result is None else result.feasible_region_per_cycle
-    if feasible is not None:
-        capture = result.capture_margin_per_cycle
-    else:
-        feasible = None if fws is None else fws.region
-        capture = math.nan if fws is None else fws.capture_point_margin
+    feasible, capture = (None, math.nan) if result is None else \
+        result.feasible_region_with(fws)
     regions = {'feasible_region': feasible,
                'support_region': None if result is None else result.support_region,
                'fwp_region': None if result is None else result.fwp.region}

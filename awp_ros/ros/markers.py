@@ -211,9 +211,7 @@ def _regions(out: _Builder, result: FeasibilityResult, fws: WrenchSetResult | No
     z0 = float(np.mean([leg.position[2] for leg in legs])) if legs else 0.0
     regions = {'support_region': getattr(result, 'support_region', None),
                'fwp_region': result.fwp.region,
-               'feasible_region': result.feasible_region_per_cycle
-               if getattr(result, 'feasible_region_per_cycle', None) is not None
-               else None if fws is None else fws.region}
+               'feasible_region': result.feasible_region_with(fws)[0]}
     for i, name in enumerate(_REGION_ORDER):
         region = regions[name]
         if region is None or region.is_empty:
