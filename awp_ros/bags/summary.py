@@ -36,8 +36,9 @@ class ReplaySummary:
     flat set's affine hull included: ``min < 0`` when some cycle was infeasible).
     ``region_margins``: ``feasible_region`` / ``support_region`` / ``fwp_region`` -> {min,
     p5, median, mean, max, n} [m] over the valid reports' finite margins, and ``empty``:
-    how many were NaN (an empty region, or none computed); the feasible region only from
-    reports whose FWS was computed for them (``fws_stamp`` = stamp), like the FWS margin.
+    how many were NaN (an empty region, or none computed). Every report's region margins
+    are its own cycle's (the feasible region by projection, not the FWS's), so all valid
+    reports count, unlike the FWS margin (only where ``fws_stamp`` = stamp).
     """
 
     reports: int = 0
@@ -125,10 +126,10 @@ def summarize_reports(reports: Iterable) -> ReplaySummary:
         values['fwp_margin'].append(r.fwp_margin)
         regions['support_region'].append(getattr(r, 'support_region_margin', math.nan))
         regions['fwp_region'].append(getattr(r, 'fwp_region_margin', math.nan))
+        regions['feasible_region'].append(getattr(r, 'feasible_region_margin', math.nan))
         if (r.fws_stamp.sec, r.fws_stamp.nanosec) == (r.header.stamp.sec,
                                                       r.header.stamp.nanosec):
             values['fws_margin'].append(r.fws_margin)
-            regions['feasible_region'].append(getattr(r, 'feasible_region_margin', math.nan))
     for name, vals in values.items():
         x = np.asarray(vals, dtype=float)
         x = x[np.isfinite(x)]

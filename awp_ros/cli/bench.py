@@ -15,11 +15,8 @@ rate, the FWS apart, possibly at a lower rate):
    ``fws_directional``: the 12 directional margins on it, ``fws_margin``: the Euclidean
    margin on it), and ``fws_query_lp``: membership and the 12 directional margins by
    :func:`~awp_ros.wrench.fws_queries.lp_directional_margins` (exact LPs, no H-rep);
-   ``regions_pair``: the feasible and the support region of each state as every cycle
-   computes them (the feasible region by exact projection,
-   :func:`~awp_ros.wrench.com_region.feasible_region`, the support region as the CWC's
-   exact slice, :func:`~awp_ros.wrench.com_region.com_region`), and
-   ``regions_baseline``: both by Bretl & Lall's iterative projection with LPs
+   ``regions_baseline``: the feasible and the support region by Bretl & Lall's iterative
+   projection with LPs
    (:func:`~awp_ros.geometry.iterative_projection.iterative_projection`, as jet-leg does;
    area tolerance 1e-6 m^2) on the first ``--baseline-samples`` of the same states.
 
@@ -28,9 +25,12 @@ JSON object with the medians: ``total_ms`` (the per-cycle evaluation without the
 ``fws_margin_ms`` (friction polytopes + FWS H-rep + Euclidean margin: the exact FWS margin),
 ``fws_query_lp_ms`` (friction polytopes + the LP queries),
 and ``<stage>_ms`` for every stage, the FWS's margin step alone as ``fws_margin_step_ms``;
-``regions_ms`` (both CoM regions, feasible by projection + support slice),
-``regions_baseline_ms`` and ``regions_speedup`` (their ratio); the per-cycle ``regions``
-stage (support, FWP and feasible regions) is ``regions_stage_ms``. ``batch_states_per_s``:
+``regions_ms`` (``com_regions`` of pass 1: the two CoM regions inside the per-cycle
+evaluation, the feasible region by exact projection,
+:func:`~awp_ros.wrench.com_region.feasible_region`, and the support region as the CWC's
+exact slice, :func:`~awp_ros.wrench.com_region.com_region`), ``regions_baseline_ms`` and
+``regions_speedup`` (their ratio); the whole per-cycle ``regions`` stage (support,
+feasible and FWP regions, the capture point) is ``regions_stage_ms``. ``batch_states_per_s``:
 states per second of :meth:`~awp_ros.evaluation.evaluator.FeasibilityEvaluator.evaluate_many`
 on the same postures (per-cycle sets, no FWS), ``loop_states_per_s`` the same by a loop of
 ``evaluate``.
@@ -99,10 +99,9 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
     names = list(base.joint_positions)
     q0 = np.array([base.joint_positions[n] for n in names])
     postures = q0 + rng.uniform(-spread, spread, size=(warmup + samples, q0.size))
-    keys = list(STAGES) + ['total'] + (list(FWS_STAGES) if fws else [])
+    keys = list(STAGES) + ['com_regions', 'total'] + (list(FWS_STAGES) if fws else [])
     times = {name: np.zeros(samples) for name in keys}
     if fws:
-        times['regions_pair'] = np.zeros(samples)
         times['regions_baseline'] = np.zeros(min(samples, max(baseline_samples, 0)))
     feasible = np.zeros(samples, dtype=bool)
     # Pass 1, the per-cycle evaluation. Results are dropped as in the node's loop (keeping
@@ -111,7 +110,7 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
         base.joint_positions = dict(zip(names, q.tolist()))
         result = evaluator.evaluate(base, fws=False)
         if i >= warmup:
-            for name in STAGES + ('total',):
+            for name in STAGES + ('com_regions', 'total'):
                 times[name][i - warmup] = result.timings_ms[name]
             feasible[i - warmup] = result.feasible
     # Pass 2, the same states re-evaluated (untimed), then the LP queries (as a per-cycle
@@ -130,7 +129,6 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
                 times[name][i - warmup] = result.timings_ms[name]
             times['fws_friction'][i - warmup] = friction_ms
             times['fws_query_lp'][i - warmup] = lp_ms
-            times['regions_pair'][i - warmup] = _regions(evaluator, result)
             if i - warmup < times['regions_baseline'].size:
                 times['regions_baseline'][i - warmup] = _regions_baseline(evaluator, base,
                                                                           result)
@@ -146,22 +144,6 @@ def _lp_query(result) -> float:
     V = [leg.friction_polytope.vertices for leg in result.legs.values()]
     t0 = time.perf_counter()
     lp_directional_margins(p, V, result.wrench)
-    return 1e3 * (time.perf_counter() - t0)
-
-
-def _regions(evaluator: FeasibilityEvaluator, result) -> float:
-    """
-    Return the time [ms] of the feasible and the support region as every cycle computes them.
-
-    The feasible region by projection
-    (:meth:`~awp_ros.evaluation.evaluator.FeasibilityEvaluator.feasible_region_at`, no FWS
-    H-rep), the support region as the CWC's slice
-    (:func:`~awp_ros.wrench.com_region.com_region`).
-    """
-    legs = list(result.legs.values())
-    t0 = time.perf_counter()
-    evaluator.feasible_region_at(legs, result.wrench)
-    com_region(result.cwc, result.wrench[:3], result.wrench[3:])
     return 1e3 * (time.perf_counter() - t0)
 
 
@@ -476,10 +458,10 @@ def main(argv: list[str] | None = None) -> int:
     for s in times:
         if s not in ('total', 'fws_query_lp', 'stream_total', 'stream_fws'):
             key = {'fws_margin': 'fws_margin_step', 'regions': 'regions_stage',
-                   'regions_pair': 'regions'}.get(s, s)
+                   'com_regions': 'regions'}.get(s, s)
             summary[f'{key}_ms'] = round(median[s], 4)
     if times.get('regions_baseline', np.zeros(0)).size:
-        summary['regions_speedup'] = round(median['regions_baseline'] / median['regions_pair'],
+        summary['regions_speedup'] = round(median['regions_baseline'] / median['com_regions'],
                                            1)
         if not args.json_only:     # a table row: the ratio of the two medians
             sys.stdout.write(f'{"regions_speedup":<20}{summary["regions_speedup"]:>12.1f}  '

@@ -26,7 +26,8 @@ Output: the :meth:`~awp_ros.evaluation.result.FeasibilityResult.to_dict` documen
 ``status``, ``warnings``, ``timings_ms``: per stage [ms], ``total`` the per-cycle evaluation
 without the FWS, and ``fws`` / ``fws_directional`` / ``fws_margin`` / ``feasible_region``
 when it is computed). The CoM regions (world-aligned x/y, origin the CoM, [m]):
-``feasible_region`` (slice of the FWS; ``null`` with ``--no-fws``), ``support_region``
+``feasible_region`` (the FWS's slice, by projection every evaluation; ``null`` when not
+computed: no stance leg, or a singular leg with ``--no-fws``), ``support_region``
 (slice of the CWC), ``fwp_region`` (slice of the FWP), each ``{"dimension": 2 | 1 | 0 | -1,
 "vertices": [[x, y], ...], "halfspaces": [[a_x, a_y, b], ...], "margin": m, "area": a}``
 (vertices counter-clockwise; a segment for two stance legs, a point for one, ``[]`` and

@@ -18,10 +18,14 @@ whole-robot CoM; SI units). Stage names are the keys of ``timings_ms`` [ms]:
    is a parallelepiped (or a singular leg's flat image), else the exact Minkowski sum.
 6. ``cwc_fwp``: the contact wrench cone and FWP = AWP ∩ CWC (the seed's FWP).
 7. ``margins``: signed Euclidean margins and witnesses of ``w`` for AWP and FWP.
-8. ``regions``: the CoM regions (:func:`~awp_ros.wrench.com_region.com_region`, exact
-   slices of the H-reps at ``w``'s force and moment): ``support_region`` of the CWC (kept
-   as ``result.cwc``), ``fwp_region`` of the FWP, and the capture point when the state has
-   a ``base_twist`` (the CoM velocity, Pinocchio's ``vcom`` of the model stage).
+8. ``regions``: the CoM regions at ``w``'s force and moment, exact: ``support_region``
+   (:func:`~awp_ros.wrench.com_region.com_region`, the slice of the CWC, kept as
+   ``result.cwc``), the feasible region
+   (:func:`~awp_ros.wrench.com_region.feasible_region`, the projection of the contact-force
+   LP; ``feasible_region_per_cycle``), ``fwp_region`` (the slice of the FWP), and the
+   capture point when the state has a ``base_twist`` (the CoM velocity, Pinocchio's
+   ``vcom`` of the model stage). The support and the feasible region alone, the two that
+   planners use, are also timed as ``com_regions`` (part of ``regions``).
 
 ``total`` is the wall time of the whole per-cycle evaluation, the eight stages back to back:
 what ``evaluate(state, fws=False)`` costs. The feasible wrench set
@@ -194,16 +198,18 @@ class FeasibilityEvaluator:
                 for k, foot in enumerate(s.stance)}
         t7 = clock()
         support = _region(cwc, w, 'support region', warnings)
+        feasible = feasible_region(p, forces, self._friction_rows(s.normals, s.mus), w[:3],
+                                   w[3:]) if s.stance else None
+        t8 = clock()
         fwp_r.region = _region(fwp, w, 'FWP region', warnings)
         capture = _capture_point(vcom, p, self._gravity)
         fwp_r.capture_point_margin = _point_margin(fwp_r.region, capture)
-        feasible = self.feasible_region_at(list(legs.values()), w)
-        t8 = clock()
+        t9 = clock()
         timings = {'validate': 1e3 * (t1 - t0), 'model': 1e3 * (t2 - t1),
                    'force_polytopes': 1e3 * (t3 - t2), 'friction_polytopes': 1e3 * (t4 - t3),
                    'awp': 1e3 * (t5 - t4), 'cwc_fwp': 1e3 * (t6 - t5),
-                   'margins': 1e3 * (t7 - t6), 'regions': 1e3 * (t8 - t7),
-                   'total': 1e3 * (t8 - t0)}
+                   'margins': 1e3 * (t7 - t6), 'regions': 1e3 * (t9 - t7),
+                   'com_regions': 1e3 * (t8 - t7), 'total': 1e3 * (t9 - t0)}
         result = FeasibilityResult(cfg.robot_name, s.stance, kin.mass, kin.com, w, legs,
                                    awp_r, fwp_r, None, warnings, timings,
                                    'quasi_static' if s.a is None else 'measured',

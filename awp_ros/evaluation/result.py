@@ -141,8 +141,9 @@ class FeasibilityResult:
     ``com`` [m] is in the world frame with the base at the origin; ``wrench`` [N, N.m] is
     the gravito-inertial wrench the contacts must supply, about the CoM; ``legs`` maps each
     stance foot (config order) to its :class:`LegResult`; ``fws`` is None when not requested.
-    ``timings_ms`` [ms]: one entry per stage, ``total`` (the per-cycle evaluation without the
-    FWS) and, once the FWS is computed, ``fws``, ``fws_directional`` and ``fws_margin``.
+    ``timings_ms`` [ms]: one entry per stage, ``com_regions`` (the support and feasible
+    regions, within ``regions``), ``total`` (the per-cycle evaluation without the FWS) and,
+    once the FWS is computed, ``fws``, ``fws_directional`` and ``fws_margin``.
     ``motion``: ``'measured'`` when the state carried accelerations (the wrench and the leg
     biases include the dynamics terms), else ``'quasi_static'`` (no accelerations; joint
     velocities, when given, still enter the bias torques and the velocity-product terms).

@@ -23,6 +23,8 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
   contact wrench cone reuses them while they hold); :func:`lifted_rays` lifts the rays;
 * :func:`polar_hull` and :func:`polygon_region`: the CoM regions' polygons (the hull of the
   lines' dual points, the primal vertices, short edges dropped, the margin);
+* :func:`leg_vertices`, :func:`projected_polygon` and :func:`feasible_region`: the feasible
+  region by exact iterative projection of the contact-force LP (a small dense simplex);
 * :func:`parallelepipeds`: the force parallelepipeds of 3-joint legs (inverse by cofactors).
 
 Each is measured beside its numpy code, interleaved in one process, by ``awp_bench
@@ -56,7 +58,7 @@ except ImportError:  # pragma: no cover - exercised only on installs without num
 
 __all__ = [
     'ENABLED', 'MAX_BITS', 'cone_facets', 'cone_recheck', 'cross_products', 'flat_cone_facets',
-    'feasible_polygon', 'flat_zonotope_facets', 'leg_vertices', 'lifted_rays', 'lifted_zonotope',
+    'feasible_region', 'flat_zonotope_facets', 'leg_vertices', 'lifted_rays', 'lifted_zonotope',
     'parallelepipeds', 'polar_hull', 'polygon_region', 'projected_polygon', 'wedge_tables',
     'zonotope_facets']
 
@@ -992,28 +994,39 @@ def _leg_vertices(A, b, tol):
 
 
 @_jit(inline=True)
+def _reduced_costs(T, basis, cost, d):
+    """Write the reduced costs ``d = cost - cost_B B^-1 A`` of the tableau's basis."""
+    m = T.shape[0]
+    N = T.shape[1] - 1
+    for j in range(N):
+        d[j] = cost[j]
+    for i in range(m):
+        cb = cost[basis[i]]
+        if cb != 0.0:
+            for j in range(N):
+                d[j] -= cb * T[i, j]
+    for i in range(m):
+        d[basis[i]] = 0.0
+
+
+@_jit(inline=True)
 def _simplex(T, basis, cost, kind, d, max_iter):
     """
     Minimise ``cost . z`` from the feasible basis of the tableau ``T = B^-1 [A | rhs]``.
 
     Nonbasic variables are at 0, so the last column holds the basic values; ``kind[j]``: 0
     ``z_j >= 0``, 1 free, 2 fixed at 0 (never enters; leaves when it would move). Dantzig's
-    rule, then Bland's (smallest index: no cycling) after ``max_iter / 4`` pivots. Returns
-    0 optimal, 1 unbounded, 2 iteration limit.
+    rule, then Bland's (smallest index: no cycling) after ``max_iter / 4`` pivots. The
+    reduced costs ``d`` are updated with each pivot like a row of the tableau, and
+    recomputed from ``cost`` every 16 pivots and before optimality is declared. Returns 0
+    optimal, 1 unbounded, 2 iteration limit.
     """
     m = T.shape[0]
     N = T.shape[1] - 1
+    _reduced_costs(T, basis, cost, d)
+    fresh = True
     for it in range(max_iter):
         bland = it > max_iter // 4
-        for j in range(N):
-            d[j] = cost[j]
-        for i in range(m):
-            cb = cost[basis[i]]
-            if cb != 0.0:
-                for j in range(N):
-                    d[j] -= cb * T[i, j]
-        for i in range(m):
-            d[basis[i]] = 0.0
         enter, best, direction = -1, 0.0, 1.0
         for j in range(N):
             if kind[j] == 2:
@@ -1026,7 +1039,11 @@ def _simplex(T, basis, cost, kind, d, max_iter):
                 if score > best:
                     enter, best, direction = j, score, (1.0 if d[j] < 0.0 else -1.0)
         if enter < 0:
-            return 0
+            if fresh:
+                return 0
+            _reduced_costs(T, basis, cost, d)        # no drift in the optimality test
+            fresh = True
+            continue
         leave, step = -1, np.inf
         for i in range(m):
             alpha = direction * T[i, enter]
@@ -1053,6 +1070,15 @@ def _simplex(T, basis, cost, kind, d, max_iter):
                     for j in range(N + 1):
                         T[i, j] -= f * T[leave, j]
         basis[leave] = enter
+        if it % 16 == 15:
+            _reduced_costs(T, basis, cost, d)
+            fresh = True
+        else:
+            f = d[enter]
+            for j in range(N):
+                d[j] -= f * T[leave, j]
+            d[enter] = 0.0
+            fresh = False
     return 2
 
 
@@ -1121,10 +1147,10 @@ def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
         return vertices[:0], 1
     for i in range(m):
         kind[n + 2 + i] = 2
-    # Support points in three directions, then every edge of the hull of the points found
-    # is tested by its outward normal until each is certified (Bretl & Lall, exact).
     u = np.empty(2)
     p = np.empty(2)
+    # Support points in three directions, then every edge of the hull of the points found
+    # is tested by its outward normal until each is certified (Bretl & Lall, exact).
     k = 0
     lps = 0
     for t in range(3):
@@ -1164,7 +1190,7 @@ def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
 
 @_jit
 def _feasible_polygon(FA, Fb, R, P, w0, D, tol, max_lps):
-    """See :func:`feasible_polygon`."""
+    """Return the vertices and status of :func:`feasible_region` (``W = w0 + D delta``)."""
     K, m0 = FA.shape[0], FA.shape[1]
     m = m0 + R.shape[1]
     A = np.empty((m, 3))
@@ -1219,25 +1245,58 @@ def _feasible_polygon(FA, Fb, R, P, w0, D, tol, max_lps):
     return V[keep].copy(), 0
 
 
-def feasible_polygon(force_A: np.ndarray, force_b: np.ndarray, rows: np.ndarray,
-                     positions: np.ndarray, w0: np.ndarray, D: np.ndarray, tol: float,
-                     max_lps: int = 400) -> tuple[np.ndarray, int]:
+@_jit
+def _feasible_region(FA, Fb, R, P, w, tol, max_lps):
+    """See :func:`feasible_region`."""
+    D = np.zeros((6, 2))             # W(delta) = w + D delta: the moment of f at the offset
+    D[3, 1], D[4, 0], D[5, 0], D[5, 1] = w[2], -w[2], w[1], -w[0]
+    V, status = _feasible_polygon(FA, Fb, R, P, w, D, tol, max_lps)
+    k = V.shape[0]
+    A = np.zeros((k, 2))
+    b = np.zeros(k)
+    margin = np.nan
+    if status != 0 or k < 3:
+        return V, A, b, margin, status
+    for j in range(k):                               # edge j joins vertices j - 1 and j
+        ex, ey = V[j, 0] - V[j - 1, 0], V[j, 1] - V[j - 1, 1]
+        length = np.hypot(ex, ey)
+        A[j, 0], A[j, 1] = ey / length, -ex / length
+        b[j] = A[j, 0] * V[j, 0] + A[j, 1] * V[j, 1]
+    margin = b.min()
+    if margin < 0.0:                                 # minus the distance of 0 to the polygon
+        dist = np.inf
+        for j in range(k):
+            ex, ey = V[j, 0] - V[j - 1, 0], V[j, 1] - V[j - 1, 1]
+            t = -(V[j - 1, 0] * ex + V[j - 1, 1] * ey) / (ex * ex + ey * ey)
+            t = min(1.0, max(0.0, t))
+            dist = min(dist, np.hypot(V[j - 1, 0] + t * ex, V[j - 1, 1] + t * ey))
+        margin = -dist
+    return V, A, b, margin, status
+
+
+def feasible_region(force_A: np.ndarray, force_b: np.ndarray, rows: np.ndarray,
+                    positions: np.ndarray, wrench: np.ndarray, tol: float,
+                    max_lps: int = 400) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
     r"""
-    Return the feasible region's vertices by :func:`projected_polygon` on the legs' points.
+    Return the feasible region's polygon by :func:`projected_polygon` on the legs' points.
 
     Leg ``k``'s friction-bounded polytope ``{f : force_A[k] f <= force_b[k], rows[k] f <=
     0}`` (torque and pyramid rows, R^3) by its vertices (:func:`leg_vertices`), lifted to
-    ``[v; p_k x v]``; the polygon's vertices closer than ``tol`` or inside an edge are
-    merged. Status as :func:`projected_polygon` (1 also for a leg that cannot push).
+    ``[v; p_k x v]`` (``positions`` (K, 3) [m] from the CoM); the wrench needed with the CoM
+    at ``delta`` is ``W(delta) = wrench + [0; delta x f]``. The polygon's vertices closer
+    than ``tol`` or inside an edge are merged.
+
+    :return: ``(V (k, 2) counter-clockwise, A (k, 2), b (k,), margin, status)``: for a
+        polygon (``k >= 3``) the unit edge rows ``A delta <= b`` (edge ``j`` joins vertices
+        ``j - 1`` and ``j``) and the signed distance [m] of 0 to its boundary (positive
+        inside); else ``A``, ``b`` empty and ``margin`` NaN. Status as
+        :func:`projected_polygon` (1 also for a leg that cannot push).
     """
-    V, status = _feasible_polygon(np.ascontiguousarray(force_A, dtype=float),
-                                  np.ascontiguousarray(force_b, dtype=float),
-                                  np.ascontiguousarray(rows, dtype=float),
-                                  np.ascontiguousarray(positions, dtype=float),
-                                  np.ascontiguousarray(w0, dtype=float),
-                                  np.ascontiguousarray(D, dtype=float), float(tol),
-                                  int(max_lps))
-    return V, int(status)
+    V, A, b, margin, status = _feasible_region(
+        np.ascontiguousarray(force_A, dtype=float), np.ascontiguousarray(force_b, dtype=float),
+        np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(positions, dtype=float),
+        np.ascontiguousarray(wrench, dtype=float), float(tol), int(max_lps))
+    return V, A, b, float(margin), int(status)
 
 
 def projected_polygon(G: np.ndarray, leg: np.ndarray, K: int, w0: np.ndarray, D: np.ndarray,
@@ -1308,8 +1367,8 @@ def compile_all() -> None:
     lifted = np.vstack([np.hstack([cube.T, cube.T]), np.zeros((3, 2 * cube.shape[0]))])
     projected_polygon(lifted, np.repeat(np.arange(2), cube.shape[0]), 2, np.zeros(6),
                       np.zeros((6, 2)), 1e-9)
-    feasible_polygon(box[None], np.ones((1, 6)), -box[None, :1], np.zeros((1, 3)), np.zeros(6),
-                     np.zeros((6, 2)), 1e-9)
+    feasible_region(box[None], np.ones((1, 6)), -box[None, :1], np.zeros((1, 3)),
+                    np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1e-9)
     J = rng.normal(size=(2, 3, 3))
     parallelepipeds(J, g[:2, :3], -np.ones((2, 3)), np.ones((2, 3)), 1e-9)
 

@@ -275,7 +275,9 @@ def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float
     if fws is not None:
         msg.fws_stamp = header.stamp if fws_stamp is None else fws_stamp
     msg.feasible = bool(msg.fwp_feasible and msg.fws_feasible)
-    _set_regions(msg, result, fws)
+    # The regions are this cycle's: an FWS of an earlier joint state does not give them.
+    fresh = fws is not None and (fws_stamp is None or fws_stamp == header.stamp)
+    _set_regions(msg, result, fws if fresh else None)
     _set_measured_forces(msg, result.measured)
     msg.compute_time = float(compute_time)
     return msg
@@ -288,7 +290,7 @@ def _set_regions(msg: FeasibilityReport, result: FeasibilityResult | None,
 
     The support and FWP regions come from ``result``, the feasible region and the capture
     point's margin too when it has them (every cycle, by projection), else from ``fws``
-    (the latest FWS, whose ``fws_stamp`` they then share).
+    (given only when it was computed for this joint state; else NaN).
     """
     feasible, capture = (None, math.nan) if result is None else \
         result.feasible_region_with(fws)

@@ -303,15 +303,17 @@ def feasible_region(positions: np.ndarray, force_polytopes: Sequence[Polytope],
         :func:`com_region` on the FWS then.
     """
     K = len(force_polytopes)
-    fx, fy, fz, *_ = _wrench(force, moment)
-    if not kernels.ENABLED or K == 0 or abs(fz) <= 1e-6 \
-            or any(F.dimension != 3 for F in force_polytopes) \
-            or len({F.A.shape for F in force_polytopes}) != 1:
+    w = np.concatenate((np.asarray(force, dtype=float).ravel(),
+                        np.asarray(moment, dtype=float).ravel()))
+    if w.shape != (6,) or not np.isfinite(w).all():
+        _wrench(force, moment)                      # raises InputError naming the bad vector
+    if not kernels.ENABLED or K == 0 or abs(w[2]) <= 1e-6 \
+            or any(F.dimension != 3 or F.A.shape != force_polytopes[0].A.shape
+                   for F in force_polytopes):
         return None
-    w0, D = com_wrench_map(force, moment)
-    V, status = kernels.feasible_polygon(np.array([F.A for F in force_polytopes]),
-                                         np.array([F.b for F in force_polytopes]),
-                                         friction_rows, positions, w0, D, distance_tol)
+    V, A, b, margin, status = kernels.feasible_region(
+        np.array([F.A for F in force_polytopes]), np.array([F.b for F in force_polytopes]),
+        friction_rows, positions, w, distance_tol)
     if status == 1:
         return _empty(0)
     if status != 0:
@@ -323,12 +325,6 @@ def feasible_region(positions: np.ndarray, force_polytopes: Sequence[Polytope],
         u = V[1] - V[0]
         length = math.hypot(u[0], u[1])
         return _segment(V[0], u / length, 0.0, length, distance_tol, 0)
-    e = V - V[_shift(k, -1)]                        # edge j joins vertices j - 1 and j
-    length = np.hypot(e[:, 0], e[:, 1])
-    A = np.stack([e[:, 1] / length, -e[:, 0] / length], axis=1)
-    b = np.einsum('ij,ij->i', A, V)
-    inside = float(b.min())
-    margin = inside if inside >= 0.0 else -_distance_to_polygon(V)
     return ComRegion(2, V, A, b, margin, {'rows': 0, 'interior_point': np.zeros(2)})
 
 

@@ -24,7 +24,7 @@ def report(i: int, support: float, fwp: float, feasible: float, *, fresh: bool,
     return r
 
 
-def test_region_margins_exclude_nan_count_empty_and_take_fresh_feasible_regions():
+def test_region_margins_exclude_nan_count_empty_and_take_every_cycle():
     rng = np.random.default_rng(0)
     support = rng.uniform(-0.05, 0.3, 40)
     support[[3, 7]] = math.nan                               # empty regions
@@ -37,7 +37,7 @@ def test_region_margins_exclude_nan_count_empty_and_take_fresh_feasible_regions(
     s = summarize_reports(reports)
     assert s.valid == 40 and s.invalid == 1
     for name, values in (('support_region', support), ('fwp_region', fwp),
-                         ('feasible_region', feasible[fresh])):
+                         ('feasible_region', feasible)):
         st = s.region_margins[name]
         x = values[np.isfinite(values)]
         assert st['n'] == x.size and st['empty'] == values.size - x.size
@@ -45,7 +45,8 @@ def test_region_margins_exclude_nan_count_empty_and_take_fresh_feasible_regions(
         assert st['median'] == np.median(x) and st['mean'] == x.mean()
         assert st['p5'] == np.percentile(x, 5)
     assert s.region_margins['support_region']['empty'] == 2
-    assert s.region_margins['feasible_region']['n'] == 10     # rows 0, 4, ..., 36: fresh
+    assert s.region_margins['feasible_region']['n'] == 38     # every cycle's, not only FWS's
+    assert s.margins['fws_margin']['n'] == 10     # the FWS margin: the FWS cycles' only
     text = s.to_text()
     assert 'region [m]' in text and 'feasible_region' in text
     json.dumps(s.to_dict(), allow_nan=False)

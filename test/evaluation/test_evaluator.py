@@ -498,7 +498,7 @@ def test_add_fws_matches_evaluate_with_fws(hyq):
     assert {'fws', 'fws_directional', 'fws_margin'} <= set(b.timings_ms)
     # 'total' is the per-cycle evaluation: its stages and glue, never the FWS stages.
     assert b.timings_ms['total'] == per_cycle['total']
-    assert set(per_cycle) == set(STAGES) | {'total'}
+    assert set(per_cycle) == set(STAGES) | {'com_regions', 'total'}   # com_regions: in regions
 
 
 def test_timings_are_measured_durations_within_the_call(hyq):

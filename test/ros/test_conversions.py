@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport, LegPolytopes
@@ -170,3 +171,24 @@ def test_robot_state_from_messages_maps_every_field():
 def test_malformed_input_messages_raise_input_errors(js, contacts, imu, match):
     with pytest.raises(InputError, match=match):
         robot_state_from_msgs(js, contacts, imu, feet=FEET)
+
+
+def test_report_regions_are_never_an_earlier_cycles(evaluator):
+    # Without this cycle's projection (a singular leg), the feasible region and the capture
+    # point's margin come from an FWS computed for this joint state only, else NaN.
+    st = evaluator.standing_state()
+    st.base_twist = np.array([0.3, 0.1, 0.0, 0.0, 0.0, 0.0])
+    result = evaluator.evaluate(st)
+    assert result.feasible_region_per_cycle is not None
+    bare = replace(result, feasible_region_per_cycle=None, capture_margin_per_cycle=math.nan)
+    now, before = Header(), Header()
+    now.stamp.sec, before.stamp.sec = 7, 6
+    same = report_msg(now, bare, compute_time=0.0, fws=result.fws, fws_stamp=now.stamp)
+    old = report_msg(now, bare, compute_time=0.0, fws=result.fws, fws_stamp=before.stamp)
+    assert same.feasible_region_margin == result.fws.region.margin
+    assert same.capture_point_margin == result.fws.capture_point_margin
+    assert math.isnan(old.feasible_region_margin) and math.isnan(old.capture_point_margin)
+    assert old.fws_margin == same.fws_margin      # the FWS fields still carry the latest FWS
+    # With this cycle's projection the region is this cycle's whatever the FWS's age.
+    full = report_msg(now, result, compute_time=0.0, fws=result.fws, fws_stamp=before.stamp)
+    assert full.feasible_region_margin == result.feasible_region_per_cycle.margin
