@@ -843,6 +843,31 @@ def polar_hull(D: np.ndarray, slack: float = 0.0) -> np.ndarray:
     return _polar_hull(np.ascontiguousarray(D, dtype=float), float(slack))
 
 
+@_jit(inline=True)
+def _signed_margin(V, b):
+    """
+    Return the signed distance [m] of 0 to the polygon ``V`` with unit edge offsets ``b``.
+
+    ``min b`` inside, minus the distance to the nearest edge of the closed chain outside.
+    """
+    k = V.shape[0]
+    inside = np.inf
+    for i in range(k):
+        inside = min(inside, b[i])
+    if inside >= 0.0:
+        return inside
+    best = np.inf                        # outside: the distance of 0 to the edges
+    for i in range(k):
+        q = (i + 1) % k
+        ex, ey = V[q, 0] - V[i, 0], V[q, 1] - V[i, 1]
+        ee = ex * ex + ey * ey
+        t = -(V[i, 0] * ex + V[i, 1] * ey) / ee if ee > 0.0 else 0.0
+        t = min(1.0, max(0.0, t))
+        qx, qy = V[i, 0] + t * ex, V[i, 1] + t * ey
+        best = min(best, qx * qx + qy * qy)
+    return -np.sqrt(best)
+
+
 @_jit
 def _polygon_region(N2, h, x0, tol, parallel):
     m = h.shape[0]
@@ -904,21 +929,7 @@ def _polygon_region(N2, h, x0, tol, parallel):
         for i in range(k):
             V[i, 0] += x0[0]
             V[i, 1] += x0[1]
-    inside = np.inf
-    for i in range(k):
-        inside = min(inside, b[i])
-    if inside >= 0.0:
-        return chain, A, b, V, inside, True
-    best = np.inf                        # outside: the distance of 0 to the edges
-    for i in range(k):
-        q = (i + 1) % k
-        ex, ey = V[q, 0] - V[i, 0], V[q, 1] - V[i, 1]
-        ee = ex * ex + ey * ey
-        t = -(V[i, 0] * ex + V[i, 1] * ey) / ee if ee > 0.0 else 0.0
-        t = min(1.0, max(0.0, t))
-        qx, qy = V[i, 0] + t * ex, V[i, 1] + t * ey
-        best = min(best, qx * qx + qy * qy)
-    return chain, A, b, V, -np.sqrt(best), True
+    return chain, A, b, V, _signed_margin(V, b), True
 
 
 def polygon_region(N2: np.ndarray, h: np.ndarray, x0: np.ndarray | None, tol: float,
@@ -1254,24 +1265,14 @@ def _feasible_region(FA, Fb, R, P, w, tol, max_lps):
     k = V.shape[0]
     A = np.zeros((k, 2))
     b = np.zeros(k)
-    margin = np.nan
     if status != 0 or k < 3:
-        return V, A, b, margin, status
+        return V, A, b, np.nan, status
     for j in range(k):                               # edge j joins vertices j - 1 and j
         ex, ey = V[j, 0] - V[j - 1, 0], V[j, 1] - V[j - 1, 1]
         length = np.hypot(ex, ey)
         A[j, 0], A[j, 1] = ey / length, -ex / length
         b[j] = A[j, 0] * V[j, 0] + A[j, 1] * V[j, 1]
-    margin = b.min()
-    if margin < 0.0:                                 # minus the distance of 0 to the polygon
-        dist = np.inf
-        for j in range(k):
-            ex, ey = V[j, 0] - V[j - 1, 0], V[j, 1] - V[j - 1, 1]
-            t = -(V[j - 1, 0] * ex + V[j - 1, 1] * ey) / (ex * ex + ey * ey)
-            t = min(1.0, max(0.0, t))
-            dist = min(dist, np.hypot(V[j - 1, 0] + t * ex, V[j - 1, 1] + t * ey))
-        margin = -dist
-    return V, A, b, margin, status
+    return V, A, b, _signed_margin(V, b), status
 
 
 def feasible_region(force_A: np.ndarray, force_b: np.ndarray, rows: np.ndarray,
