@@ -4,15 +4,16 @@ The soak script, short: awp_node driven from another process; nothing may be los
 The full runs (60 s at 1 kHz and at a sustained rate) are in the README, with the command;
 here a few seconds at a rate this machine sustains (no timing assertions: the machine is
 shared), plus the two overload behaviours, made deterministic by a node slowed down on
-purpose (the FWS every cycle, ``fws_rate_hz`` 0, at 2 kHz of input): a queue too short for
-the backlog (every loss is counted by the node itself) and load shedding (every joint state
-still answered).
+purpose (the FWS every cycle, ``fws_rate_hz`` 0): a queue too short for the backlog (2 kHz
+in; every loss is counted by the node itself) and load shedding (500 Hz in; every joint
+state still answered).
 """
 
 from __future__ import annotations
 
 import math
 import os
+import re
 import resource
 
 from awp_ros_msgs.msg import FeasibilityReport
@@ -76,19 +77,22 @@ def test_a_queue_too_short_for_the_backlog_loses_joint_states_but_counts_each(ro
 
 
 def test_load_shedding_answers_every_joint_state(ros_env):
-    # Overloaded on purpose (the FWS every cycle, several ms, at 2 kHz in) with 50 ms of
+    # Overloaded on purpose (the FWS every cycle, tens of ms, at 500 Hz in) with 50 ms of
     # queue delay allowed: the first joint states are evaluated, the backlog soon exceeds
     # 50 ms, and the joint states that waited longer are answered at once, not evaluated.
+    # (At 2 kHz rclpy's own cost per message in and out, ~0.4 ms, is the limit on a slow
+    # machine even for an answer that evaluates nothing; and this process, receiving every
+    # report twice, falls behind too.)
     probe = Probe(int(ros_env['ROS_DOMAIN_ID']), 'awp_soak_test_reports')
     reports = probe.subscribe(FeasibilityReport, '/soak/awp_node/report', depth=100000)
     try:
-        r = run_soak(2000.0, 1.0, env=ros_env, warmup_s=0.2, sample_period_s=0.25,
+        r = run_soak(500.0, 2.0, env=ros_env, warmup_s=0.4, sample_period_s=0.25,
                      stall_timeout_s=5.0,
                      params={'max_queue_delay_s': 0.05, 'fws_rate_hz': 0.0})
     finally:
         probe.close()
     assert r.node_alive
-    assert r.sent == 2000
+    assert r.sent == 1000
     assert r.reports == r.sent and r.missing == 0 and r.duplicates == 0
     assert r.status_counts.get('stale_input', 0) > 0, r.status_counts     # shed
     assert r.status_counts.get('ok', 0) + r.status_counts.get('warning', 0) > 0
@@ -96,9 +100,18 @@ def test_load_shedding_answers_every_joint_state(ros_env):
     # The same reports, seen by another subscriber: each shed one says why.
     assert len(reports) == r.reports
     shed = [m for m in reports if m.status == FeasibilityReport.STATUS_STALE_INPUT]
+    evaluated = [m for m in reports if m.status != FeasibilityReport.STATUS_STALE_INPUT]
     assert len(shed) == r.status_counts['stale_input']
     assert all('the node is overloaded and sheds load' in m.status_message
-               and 'waited' in m.status_message and math.isnan(m.fwp_margin)
-               and not m.feasible for m in shed)
-    # Shed joint states are answered at once: a generous sanity bound on the latency.
-    assert r.latency_after_warmup_ms['p50'] < 1000.0
+               and math.isnan(m.fwp_margin) and not m.feasible for m in shed)
+    # Shed because each waited longer than max_queue_delay_s, by the node's own clock.
+    waited = [float(re.search(r'waited ([0-9.]+) s', m.status_message).group(1)) for m in shed]
+    assert min(waited) >= 0.05
+    # Answered at once: a shed joint state costs a small part of an evaluation, and the
+    # backlog drains far sooner than evaluating every joint state would take (the
+    # latencies here are at this process's reception, so its own lag is in them too).
+    eval_s = float(np.median([m.compute_time for m in evaluated]))
+    assert np.median([m.compute_time for m in shed]) < 0.1 * eval_s
+    unshed_s = r.sent * eval_s
+    assert r.drain_s < 0.25 * unshed_s, (r.drain_s, unshed_s)
+    assert r.latency_after_warmup_ms['p50'] * 1e-3 < 0.25 * unshed_s, r.latency_after_warmup_ms
