@@ -58,7 +58,8 @@ from awp_ros.geometry.polytope import Polytope
 from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.robot.model import RobotModel
 from awp_ros.robot.state import resolve_state, RobotState
-from awp_ros.wrench.com_region import com_region, ComRegion, feasible_region
+from awp_ros.wrench.com_region import (com_region, ComRegion, feasible_region,
+                                       feasible_region_of_rows)
 from awp_ros.wrench.contact_forces import measured_contact_forces
 from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone
 from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
@@ -171,7 +172,7 @@ class FeasibilityEvaluator:
                                     'its torque limits (empty friction-bounded polytope)')
         t4 = clock()
         if s.stance:
-            awp = actuation_wrench_polytope(p, *stacked) if stacked is not None else \
+            awp = actuation_wrench_polytope(p, *stacked[:2]) if stacked is not None else \
                 minkowski_sum_of_lifts(p, [F.vertices for F in forces])
             t5 = clock()
             cwc = contact_wrench_cone(p, s.normals, s.mus, cfg.pyramid_sides)
@@ -198,8 +199,12 @@ class FeasibilityEvaluator:
                 for k, foot in enumerate(s.stance)}
         t7 = clock()
         support = _region(cwc, w, 'support region', warnings)
-        feasible = feasible_region(p, forces, self._friction_rows(s.normals, s.mus), w[:3],
-                                   w[3:]) if s.stance else None
+        if stacked is not None and len(stacked) == 4 and kernels.ENABLED and abs(w[2]) > 1e-6:
+            feasible = feasible_region_of_rows(p, stacked[2], stacked[3],
+                                               self._friction_rows(s.normals, s.mus), w)
+        else:
+            feasible = feasible_region(p, forces, self._friction_rows(s.normals, s.mus),
+                                       w[:3], w[3:]) if s.stance else None
         t8 = clock()
         fwp_r.region = _region(fwp, w, 'FWP region', warnings)
         capture = _capture_point(vcom, p, self._gravity)
@@ -340,7 +345,9 @@ class FeasibilityEvaluator:
         Return the force polytope of each stance leg (batched for 3-joint legs).
 
         Also return ``(centers (K, 3), generators (K, 3, 3))`` of the AWP's zonotope when
-        every leg is a parallelepiped or a singular leg's flat image, else None.
+        every leg is a parallelepiped or a singular leg's flat image, else None; with the
+        legs' stacked H-reps ``A (K, 6, 3), b (K, 6)`` after them when every leg is a
+        full-dimensional parallelepiped (the feasible region's input).
         """
         K = len(stance)
         out: list[Polytope | None] = [None] * K
@@ -361,7 +368,7 @@ class FeasibilityEvaluator:
                             'generators': gen[k]}
                     out[k] = Polytope(3, V[k], A[k], b[k], zero, eye, meta)
             if min(ratio) > self.singular_rtol:
-                stacked = (center, gen)
+                stacked = (center, gen, A, b)
         for k, foot in enumerate(stance):
             if out[k] is None:
                 out[k] = force_polytope(J[k], bias[k], self._tau_min[foot],

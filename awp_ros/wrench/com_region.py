@@ -100,7 +100,8 @@ from awp_ros.errors import GeometryError, InputError
 from awp_ros.geometry import kernels
 from awp_ros.geometry.polytope import Polytope
 
-__all__ = ['ComRegion', 'com_region', 'com_wrench_map', 'feasible_region']
+__all__ = ['ComRegion', 'com_region', 'com_wrench_map', 'feasible_region',
+           'feasible_region_of_rows']
 
 
 @dataclass(frozen=True)
@@ -311,9 +312,23 @@ def feasible_region(positions: np.ndarray, force_polytopes: Sequence[Polytope],
             or any(F.dimension != 3 or F.A.shape != force_polytopes[0].A.shape
                    for F in force_polytopes):
         return None
-    V, A, b, margin, status = kernels.feasible_region(
-        np.array([F.A for F in force_polytopes]), np.array([F.b for F in force_polytopes]),
-        friction_rows, positions, w, distance_tol)
+    return feasible_region_of_rows(positions, np.array([F.A for F in force_polytopes]),
+                                   np.array([F.b for F in force_polytopes]), friction_rows, w,
+                                   distance_tol=distance_tol)
+
+
+def feasible_region_of_rows(positions: np.ndarray, force_A: np.ndarray, force_b: np.ndarray,
+                            friction_rows: np.ndarray, wrench: np.ndarray, *,
+                            distance_tol: float = 1e-9) -> ComRegion | None:
+    """
+    Return :func:`feasible_region` from the legs' stacked H-reps, unchecked (a hot path).
+
+    :param force_A: (K, m, 3) and ``force_b`` (K, m): the K full-dimensional force
+        polytopes ``A f <= b`` [N]; ``wrench``: ``[f; L']`` (6,) finite, ``|f_z| > 1e-6`` N;
+        the rest as :func:`feasible_region` (kernels enabled).
+    """
+    V, A, b, margin, status = kernels.feasible_region(force_A, force_b, friction_rows,
+                                                      positions, wrench, distance_tol)
     if status == 1:
         return _empty(0)
     if status != 0:
