@@ -1110,6 +1110,39 @@ def _support_point(T, basis, cost, kind, d, u, n, out):
     return status
 
 
+@_jit(inline=True)
+def _basis_bound(T, basis, kind, leg, n, K, u, a0, a1, gap):
+    r"""
+    Bound ``max u . delta - u . a`` [m] over the LP's feasible set, from the current basis.
+
+    With the cost ``-u . delta`` the reduced cost of a weight is ``d_j = u . (T[r_x, j],
+    T[r_y, j])`` (rows ``r_x, r_y`` where ``delta`` is basic), and every feasible point has
+    ``u . delta = u . delta_B - \sum_j d_j lam_j`` with ``lam_j`` in [0, 1], one unit of
+    weight per leg: so ``u . delta <= u . delta_B + \sum_legs max_j max(0, -d_j)``. Any
+    feasible basis gives this bound; inf when ``delta`` is not basic.
+    """
+    rx = ry = -1
+    for i in range(T.shape[0]):
+        if basis[i] == n:
+            rx = i
+        elif basis[i] == n + 1:
+            ry = i
+    if rx < 0 or ry < 0:
+        return np.inf
+    for k in range(K):
+        gap[k] = 0.0
+    for j in range(n):
+        if kind[j] == 0:
+            dj = u[0] * T[rx, j] + u[1] * T[ry, j]
+            if -dj > gap[leg[j]]:
+                gap[leg[j]] = -dj
+    N = T.shape[1] - 1
+    total = u[0] * (T[rx, N] - a0) + u[1] * (T[ry, N] - a1)
+    for k in range(K):
+        total += gap[k]
+    return total
+
+
 @_jit
 def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
     """See :func:`projected_polygon`."""
@@ -1160,8 +1193,10 @@ def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
         kind[n + 2 + i] = 2
     u = np.empty(2)
     p = np.empty(2)
+    gap = np.empty(K)
     # Support points in three directions, then every edge of the hull of the points found
-    # is tested by its outward normal until each is certified (Bretl & Lall, exact).
+    # is tested by its outward normal until each is certified (Bretl & Lall, exact): by the
+    # bound of the current basis when it suffices (_basis_bound, no pivot), else by an LP.
     k = 0
     lps = 0
     for t in range(3):
@@ -1184,6 +1219,9 @@ def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
         b0, b1 = vertices[(e + 1) % k, 0], vertices[(e + 1) % k, 1]
         length = np.hypot(b0 - a0, b1 - a1)
         u[0], u[1] = (b1 - a1) / length, -(b0 - a0) / length
+        if _basis_bound(T, basis, kind, leg, n, K, u, a0, a1, gap) <= tol:
+            e += 1                                   # certified by the current basis
+            continue
         if lps >= max_lps:
             return vertices[:0], 2
         if _support_point(T, basis, cost, kind, d, u, n, p) != 0:
