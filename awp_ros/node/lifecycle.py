@@ -12,6 +12,7 @@ from collections.abc import Callable
 
 import rclpy
 from rclpy.executors import ExternalShutdownException
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 
 __all__ = ['run_node']
@@ -24,7 +25,7 @@ def run_node(argv: list[str], build: Callable[[], Node], spin: Callable[[Node], 
     :param argv: the command line with its ROS arguments (``rclpy.init(args=argv)``).
     :param build: returns the node (after rclpy.init).
     :param spin: spins it until shutdown; returns the exit code (0 after Ctrl-C or an
-        external shutdown).
+        external shutdown, including one that lands while the executor builds its wait set).
     """
     rclpy.init(args=argv)
     node = None
@@ -33,6 +34,13 @@ def run_node(argv: list[str], build: Callable[[], Node], spin: Callable[[Node], 
         return spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         return 0
+    except _rclpy.RCLError:
+        # SIGINT/SIGTERM shut the context down while the executor was building its wait
+        # set ("the given context is not valid"): a shutdown, not a failure. With the
+        # context still valid the error is real.
+        if not rclpy.ok():
+            return 0
+        raise
     finally:
         if node is not None:
             node.destroy_node()
