@@ -15,8 +15,8 @@ def _wait_set(context) -> None:
         _rclpy.WaitSet(0, 0, 0, 0, 0, 0, context.handle)
 
 
-def test_a_shutdown_while_the_executor_builds_its_wait_set_is_a_clean_exit(ros_env,
-                                                                            monkeypatch):
+def test_a_shutdown_while_the_executor_builds_its_wait_set_is_a_clean_exit(
+        ros_env, monkeypatch):
     # The race seen once in a CI run: SIGINT's handler shuts the context down between the
     # executor's ok() check and its WaitSet(), which raises RCLError ("the given context is
     # not valid"). Here the same call, on a context really shut down.
