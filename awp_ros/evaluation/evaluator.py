@@ -160,7 +160,8 @@ class FeasibilityEvaluator:
         vcom = model.data.vcom[0].copy() \
             if state.base_twist is not None and base_velocity_known else None
         t2 = clock()
-        forces, stacked = self._force_polytopes(s.stance, kin.J, kin.bias, warnings)
+        forces, stacked, force_rows = self._force_polytopes(s.stance, kin.J, kin.bias,
+                                                            warnings)
         t3 = clock()
         frictions: FrictionPolytopes | list = []
         if forces:
@@ -172,7 +173,7 @@ class FeasibilityEvaluator:
                                     'its torque limits (empty friction-bounded polytope)')
         t4 = clock()
         if s.stance:
-            awp = actuation_wrench_polytope(p, *stacked[:2]) if stacked is not None else \
+            awp = actuation_wrench_polytope(p, *stacked) if stacked is not None else \
                 minkowski_sum_of_lifts(p, [F.vertices for F in forces])
             t5 = clock()
             cwc = contact_wrench_cone(p, s.normals, s.mus, cfg.pyramid_sides)
@@ -199,8 +200,8 @@ class FeasibilityEvaluator:
                 for k, foot in enumerate(s.stance)}
         t7 = clock()
         support = _region(cwc, w, 'support region', warnings)
-        if stacked is not None and len(stacked) == 4 and kernels.ENABLED and abs(w[2]) > 1e-6:
-            feasible = feasible_region_of_rows(p, stacked[2], stacked[3],
+        if force_rows is not None:
+            feasible = feasible_region_of_rows(p, *force_rows,
                                                self._friction_rows(s.normals, s.mus), w)
         else:
             feasible = feasible_region(p, forces, self._friction_rows(s.normals, s.mus),
@@ -340,18 +341,19 @@ class FeasibilityEvaluator:
         return self._rows_cache[1]
 
     def _force_polytopes(self, stance: tuple[str, ...], J: list, bias: list,
-                         warnings: list[str]) -> tuple[list[Polytope], tuple | None]:
+                         warnings: list[str]) -> tuple[list[Polytope], tuple | None,
+                                                       tuple | None]:
         """
         Return the force polytope of each stance leg (batched for 3-joint legs).
 
         Also return ``(centers (K, 3), generators (K, 3, 3))`` of the AWP's zonotope when
-        every leg is a parallelepiped or a singular leg's flat image, else None; with the
-        legs' stacked H-reps ``A (K, 6, 3), b (K, 6)`` after them when every leg is a
-        full-dimensional parallelepiped (the feasible region's input).
+        every leg is a parallelepiped or a singular leg's flat image, else None; and the
+        legs' stacked H-reps ``(A (K, 6, 3), b (K, 6))`` when every leg is a
+        full-dimensional parallelepiped (the feasible region's input), else None.
         """
         K = len(stance)
         out: list[Polytope | None] = [None] * K
-        stacked = None
+        stacked = rows = None
         if self._three_joint and K:
             lo, hi = self._limits(stance)
             pp = parallelepipeds(np.array(J), np.array(bias), lo, hi,
@@ -368,7 +370,7 @@ class FeasibilityEvaluator:
                             'generators': gen[k]}
                     out[k] = Polytope(3, V[k], A[k], b[k], zero, eye, meta)
             if min(ratio) > self.singular_rtol:
-                stacked = (center, gen, A, b)
+                stacked, rows = (center, gen), (A, b)
         for k, foot in enumerate(stance):
             if out[k] is None:
                 out[k] = force_polytope(J[k], bias[k], self._tau_min[foot],
@@ -386,7 +388,7 @@ class FeasibilityEvaluator:
                                          for F in out):
             stacked = (np.array([F.meta['center'] for F in out]),
                        np.array([F.meta['generators'] for F in out]))
-        return out, stacked
+        return out, stacked, rows
 
     def _limits(self, stance: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray]:
         """Return the stacked torque limits (K, n) of a stance set (cached per set)."""

@@ -308,9 +308,8 @@ def feasible_region(positions: np.ndarray, force_polytopes: Sequence[Polytope],
                         np.asarray(moment, dtype=float).ravel()))
     if w.shape != (6,) or not np.isfinite(w).all():
         _wrench(force, moment)                      # raises InputError naming the bad vector
-    if not kernels.ENABLED or K == 0 or abs(w[2]) <= 1e-6 \
-            or any(F.dimension != 3 or F.A.shape != force_polytopes[0].A.shape
-                   for F in force_polytopes):
+    if K == 0 or any(F.dimension != 3 or F.A.shape != force_polytopes[0].A.shape
+                     for F in force_polytopes):
         return None
     return feasible_region_of_rows(positions, np.array([F.A for F in force_polytopes]),
                                    np.array([F.b for F in force_polytopes]), friction_rows, w,
@@ -324,9 +323,12 @@ def feasible_region_of_rows(positions: np.ndarray, force_A: np.ndarray, force_b:
     Return :func:`feasible_region` from the legs' stacked H-reps, unchecked (a hot path).
 
     :param force_A: (K, m, 3) and ``force_b`` (K, m): the K full-dimensional force
-        polytopes ``A f <= b`` [N]; ``wrench``: ``[f; L']`` (6,) finite, ``|f_z| > 1e-6`` N;
-        the rest as :func:`feasible_region` (kernels enabled).
+        polytopes ``A f <= b`` [N]; ``wrench``: ``[f; L']`` (6,) finite;
+        the rest as :func:`feasible_region`, whose None cases the caller has excluded
+        but these two: kernels off, ``|f_z| <= 1e-6`` N.
     """
+    if not kernels.ENABLED or abs(wrench[2]) <= 1e-6:
+        return None
     V, A, b, margin, status = kernels.feasible_region(force_A, force_b, friction_rows,
                                                       positions, wrench, distance_tol)
     if status == 1:
