@@ -60,7 +60,7 @@ __all__ = [
     'ENABLED', 'MAX_BITS', 'cone_facets', 'cone_recheck', 'cross_products', 'flat_cone_facets',
     'feasible_region', 'flat_zonotope_facets', 'leg_vertices', 'lifted_rays', 'lifted_zonotope',
     'parallelepipeds', 'polar_hull', 'polygon_region', 'projected_polygon', 'wedge_tables',
-    'zonotope_facets']
+    'wrench_slice', 'zonotope_facets']
 
 #: Whether the compiled kernels are used (numba importable and not disabled).
 ENABLED = numba is not None and os.environ.get('AWP_ROS_KERNELS', '') != 'numpy'
@@ -954,6 +954,47 @@ def polygon_region(N2: np.ndarray, h: np.ndarray, x0: np.ndarray | None, tol: fl
     return (A, b, V, float(margin)) if ok else None
 
 
+@_jit
+def _wrench_slice(PA, Pb, w, tol, parallel, h_min):
+    m = PA.shape[0]
+    fx, fy, fz, Lx, Ly, Lz = w[0], w[1], w[2], w[3], w[4], w[5]
+    N2 = np.empty((2, m))
+    h = np.empty(m)
+    lowest = np.inf
+    for i in range(m):
+        h[i] = Pb[i] - (PA[i, 0] * fx + PA[i, 1] * fy + PA[i, 2] * fz + PA[i, 3] * Lx
+                        + PA[i, 4] * Ly + PA[i, 5] * Lz)
+        N2[0, i] = fy * PA[i, 5] - fz * PA[i, 4]
+        N2[1, i] = fz * PA[i, 3] - fx * PA[i, 5]
+        lowest = min(lowest, h[i])
+    A, b, V = np.empty((0, 2)), np.empty(0), np.empty((0, 2))
+    if m < 3 or not lowest > h_min:
+        return A, b, V, np.nan, 1
+    _, A, b, V, margin, ok = _polygon_region(N2, h, np.zeros(2), tol, parallel)
+    return A, b, V, margin, 0 if ok else 2
+
+
+def wrench_slice(A: np.ndarray, b: np.ndarray, wrench: np.ndarray, tol: float,
+                 parallel: float, h_min: float) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                         float, int]:
+    r"""
+    Return the CoM region of a full-dimensional wrench set when the CoM is well inside.
+
+    The fast path of :func:`awp_ros.wrench.com_region.com_region` (steps 4-7, compiled): the
+    rows ``A w <= b`` (R^6) in ``delta``, ``n_i . delta <= h_i`` with ``h = b - A w`` and
+    ``n_i = (f_y a_{i,5} - f_z a_{i,4}, f_z a_{i,3} - f_x a_{i,5})`` (``w = [f; L']``),
+    then :func:`polygon_region` about the current CoM.
+
+    :return: ``(A, b, V, margin, status)`` as :func:`polygon_region`; status 0 the polygon,
+        1 not this path (fewer than 3 rows, or some ``h_i <= h_min``: the current CoM not
+        well inside), 2 unbounded.
+    """
+    return _wrench_slice(np.ascontiguousarray(A, dtype=float),
+                         np.ascontiguousarray(b, dtype=float),
+                         np.ascontiguousarray(wrench, dtype=float), float(tol),
+                         float(parallel), float(h_min))
+
+
 # -- the feasible region by exact iterative projection (a small simplex) ---------------------
 
 @_jit
@@ -965,24 +1006,24 @@ def _leg_vertices(A, b, tol):
     for i in range(m):
         bmax = max(bmax, abs(b[i]))
     slack = tol * bmax
+    C = np.empty((m, m, 3))                          # C[j, k] = a_j x a_k, once per pair
+    for j in range(m):
+        for k in range(j + 1, m):
+            C[j, k, 0] = A[j, 1] * A[k, 2] - A[j, 2] * A[k, 1]
+            C[j, k, 1] = A[j, 2] * A[k, 0] - A[j, 0] * A[k, 2]
+            C[j, k, 2] = A[j, 0] * A[k, 1] - A[j, 1] * A[k, 0]
     n = 0
     x = np.empty(3)
     for i in range(m):
         for j in range(i + 1, m):
-            cx = A[j, 1] * A[i, 2] - A[j, 2] * A[i, 1]
-            cy = A[j, 2] * A[i, 0] - A[j, 0] * A[i, 2]
-            cz = A[j, 0] * A[i, 1] - A[j, 1] * A[i, 0]
+            cx, cy, cz = -C[i, j, 0], -C[i, j, 1], -C[i, j, 2]
             for k in range(j + 1, m):
                 # Cramer's rule: x = (b_i a_j x a_k + b_j a_k x a_i + b_k a_i x a_j) / det
-                jk0 = A[j, 1] * A[k, 2] - A[j, 2] * A[k, 1]
-                jk1 = A[j, 2] * A[k, 0] - A[j, 0] * A[k, 2]
-                jk2 = A[j, 0] * A[k, 1] - A[j, 1] * A[k, 0]
+                jk0, jk1, jk2 = C[j, k, 0], C[j, k, 1], C[j, k, 2]
                 det = A[i, 0] * jk0 + A[i, 1] * jk1 + A[i, 2] * jk2
                 if abs(det) <= 1e-12:
                     continue
-                ki0 = A[k, 1] * A[i, 2] - A[k, 2] * A[i, 1]
-                ki1 = A[k, 2] * A[i, 0] - A[k, 0] * A[i, 2]
-                ki2 = A[k, 0] * A[i, 1] - A[k, 1] * A[i, 0]
+                ki0, ki1, ki2 = -C[i, k, 0], -C[i, k, 1], -C[i, k, 2]
                 x[0] = (b[i] * jk0 + b[j] * ki0 - b[k] * cx) / det
                 x[1] = (b[i] * jk1 + b[j] * ki1 - b[k] * cy) / det
                 x[2] = (b[i] * jk2 + b[j] * ki2 - b[k] * cz) / det
@@ -1005,23 +1046,23 @@ def _leg_vertices(A, b, tol):
 
 
 @_jit(inline=True)
-def _reduced_costs(T, basis, cost, d):
-    """Write the reduced costs ``d = cost - cost_B B^-1 A`` of the tableau's basis."""
+def _reduced_costs(T, basis, cost, d, live):
+    """Write the reduced costs ``d = cost - cost_B B^-1 A`` of the first ``live`` columns."""
     m = T.shape[0]
-    N = T.shape[1] - 1
-    for j in range(N):
+    for j in range(live):
         d[j] = cost[j]
     for i in range(m):
         cb = cost[basis[i]]
         if cb != 0.0:
-            for j in range(N):
+            for j in range(live):
                 d[j] -= cb * T[i, j]
     for i in range(m):
-        d[basis[i]] = 0.0
+        if basis[i] < live:
+            d[basis[i]] = 0.0
 
 
 @_jit(inline=True)
-def _simplex(T, basis, cost, kind, d, max_iter):
+def _simplex(T, basis, cost, kind, d, max_iter, live):
     """
     Minimise ``cost . z`` from the feasible basis of the tableau ``T = B^-1 [A | rhs]``.
 
@@ -1029,17 +1070,19 @@ def _simplex(T, basis, cost, kind, d, max_iter):
     ``z_j >= 0``, 1 free, 2 fixed at 0 (never enters; leaves when it would move). Dantzig's
     rule, then Bland's (smallest index: no cycling) after ``max_iter / 4`` pivots. The
     reduced costs ``d`` are updated with each pivot like a row of the tableau, and
-    recomputed from ``cost`` every 16 pivots and before optimality is declared. Returns 0
-    optimal, 1 unbounded, 2 iteration limit.
+    recomputed from ``cost`` every 16 pivots and before optimality is declared. Only the
+    first ``live`` columns (and the last) are kept up to date: the others are fixed
+    variables that can never enter again (phase 1's artificials, once it is over), and no
+    step reads their columns. Returns 0 optimal, 1 unbounded, 2 iteration limit.
     """
     m = T.shape[0]
     N = T.shape[1] - 1
-    _reduced_costs(T, basis, cost, d)
+    _reduced_costs(T, basis, cost, d, live)
     fresh = True
     for it in range(max_iter):
         bland = it > max_iter // 4
         enter, best, direction = -1, 0.0, 1.0
-        for j in range(N):
+        for j in range(live):
             if kind[j] == 2:
                 continue
             score = abs(d[j]) if kind[j] == 1 else -d[j]
@@ -1052,7 +1095,7 @@ def _simplex(T, basis, cost, kind, d, max_iter):
         if enter < 0:
             if fresh:
                 return 0
-            _reduced_costs(T, basis, cost, d)        # no drift in the optimality test
+            _reduced_costs(T, basis, cost, d, live)  # no drift in the optimality test
             fresh = True
             continue
         leave, step = -1, np.inf
@@ -1072,21 +1115,23 @@ def _simplex(T, basis, cost, kind, d, max_iter):
         if leave < 0:
             return 1
         piv = T[leave, enter]
-        for j in range(N + 1):
+        for j in range(live):
             T[leave, j] /= piv
+        T[leave, N] /= piv
         for i in range(m):
             if i != leave:
                 f = T[i, enter]
                 if f != 0.0:
-                    for j in range(N + 1):
+                    for j in range(live):
                         T[i, j] -= f * T[leave, j]
+                    T[i, N] -= f * T[leave, N]
         basis[leave] = enter
         if it % 16 == 15:
-            _reduced_costs(T, basis, cost, d)
+            _reduced_costs(T, basis, cost, d, live)
             fresh = True
         else:
             f = d[enter]
-            for j in range(N):
+            for j in range(live):
                 d[j] -= f * T[leave, j]
             d[enter] = 0.0
             fresh = False
@@ -1099,7 +1144,7 @@ def _support_point(T, basis, cost, kind, d, u, n, out):
     for j in range(cost.shape[0]):
         cost[j] = 0.0
     cost[n], cost[n + 1] = -u[0], -u[1]
-    status = _simplex(T, basis, cost, kind, d, 4000)
+    status = _simplex(T, basis, cost, kind, d, 4000, n + 2)
     out[0] = out[1] = 0.0
     N = T.shape[1] - 1
     for i in range(T.shape[0]):
@@ -1165,21 +1210,42 @@ def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
         T[6 + leg[j], j] = 1.0
     for k in range(K):
         T[6 + k, N] = 1.0
-    # Phase 1: artificial z_{n+2+i} = |rhs_i| basic, minimise their sum.
+    # Phase 1 from a crash basis: each leg's convexity row starts with its point of largest
+    # vertical force basic (weight 1, eliminated from the wrench rows); the wrench rows (and
+    # the convexity row of a leg without points) start with an artificial z_{n+2+i} =
+    # |rhs_i| basic; their sum is minimised. A leg's artificial with its point basic is
+    # fixed at 0 from the start.
     basis = np.empty(m, dtype=np.int64)
     kind = np.zeros(N, dtype=np.int64)
     kind[n] = kind[n + 1] = 1
-    for i in range(m):
+    cost = np.zeros(N)
+    d = np.empty(N)
+    first = np.full(K, -1, dtype=np.int64)
+    for j in range(n):
+        if first[leg[j]] < 0 or T[2, j] > T[2, first[leg[j]]]:
+            first[leg[j]] = j
+    for k in range(K):
+        r, c = 6 + k, first[k]
+        if c < 0:
+            T[r, n + 2 + r] = 1.0
+            basis[r] = n + 2 + r
+            cost[n + 2 + r] = 1.0
+            continue
+        for i in range(6):                           # T[r, c] == 1: pivot on it
+            f = T[i, c]
+            if f != 0.0:
+                for j in range(N + 1):
+                    T[i, j] -= f * T[r, j]
+        basis[r] = c
+        kind[n + 2 + r] = 2
+    for i in range(6):
         if T[i, N] < 0.0:
             for j in range(N + 1):
                 T[i, j] = -T[i, j]
         T[i, n + 2 + i] = 1.0
         basis[i] = n + 2 + i
-    cost = np.zeros(N)
-    d = np.empty(N)
-    for i in range(m):
         cost[n + 2 + i] = 1.0
-    status = _simplex(T, basis, cost, kind, d, 4000)
+    status = _simplex(T, basis, cost, kind, d, 4000, N)
     vertices = np.empty((max_lps + 3, 2))
     if status != 0:
         return vertices[:0], 2
@@ -1230,11 +1296,49 @@ def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
         if u[0] * (p[0] - a0) + u[1] * (p[1] - a1) <= tol:
             e += 1                                   # a certified edge
             continue
+        # A support point at a vertex already found is on the inner side of every edge in
+        # exact arithmetic: beyond this one only by the rounding of a short edge's normal
+        # (two points found on one edge, ~1e-8 m apart). Certified; inserting it would
+        # break the chain's convexity.
+        known = False
+        for q in range(k):
+            if abs(p[0] - vertices[q, 0]) + abs(p[1] - vertices[q, 1]) <= tol:
+                known = True
+                break
+        if known:
+            e += 1
+            continue
         for q in range(k, e + 1, -1):                # insert p after vertex e
             vertices[q, 0], vertices[q, 1] = vertices[q - 1, 0], vertices[q - 1, 1]
         vertices[e + 1, 0], vertices[e + 1, 1] = p[0], p[1]
         k += 1
     return vertices[:k], 0
+
+
+@_jit(inline=True)
+def _needed_rows(R):
+    """
+    Return how many of the rows ``R`` (pyramid sides, then ``-n . f <= 0``) are needed.
+
+    The last row is implied by the others, and dropped (fewer plane triples), when their
+    sum is a positive multiple of it (``mu > 0``: the pyramid lies above its apex).
+    """
+    c = R.shape[0]
+    if c < 2:
+        return c
+    s0 = s1 = s2 = 0.0
+    for i in range(c - 1):
+        s0, s1, s2 = s0 + R[i, 0], s1 + R[i, 1], s2 + R[i, 2]
+    u0, u1, u2 = R[c - 1, 0], R[c - 1, 1], R[c - 1, 2]
+    uu = u0 * u0 + u1 * u1 + u2 * u2
+    su = s0 * u0 + s1 * u1 + s2 * u2
+    if not (uu > 0.0 and su > 0.0):
+        return c
+    t = su / uu
+    e0, e1, e2 = s0 - t * u0, s1 - t * u1, s2 - t * u2
+    if e0 * e0 + e1 * e1 + e2 * e2 <= 1e-24 * (s0 * s0 + s1 * s1 + s2 * s2):
+        return c - 1
+    return c
 
 
 @_jit
@@ -1252,7 +1356,7 @@ def _feasible_polygon(FA, Fb, R, P, w0, D, tol, max_lps):
         b[:m0] = Fb[k]
         A[m0:] = R[k]
         b[m0:] = 0.0
-        V = _leg_vertices(A, b, 1e-9)
+        V = _leg_vertices(A[:m0 + _needed_rows(R[k])], b, 1e-9)
         if V.shape[0] == 0:
             return np.empty((0, 2)), 1
         for v in range(V.shape[0]):
@@ -1401,6 +1505,7 @@ def compile_all() -> None:
                     np.array(list(combinations(range(9), 5)), dtype=np.int64), 1e-12, 1e-10,
                     1e-9, 1e-9)
     polygon_region(g[:2], np.ones(8), None, 1e-9, 1e-12)
+    wrench_slice(g.T, np.ones(8), np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1e-9, 1e-12, 0.0)
     box = np.vstack([np.eye(3), -np.eye(3)])
     cube = leg_vertices(box, np.ones(6))
     lifted = np.vstack([np.hstack([cube.T, cube.T]), np.zeros((3, 2 * cube.shape[0]))])

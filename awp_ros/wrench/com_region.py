@@ -213,6 +213,14 @@ def com_region(polytope: Polytope, force: np.ndarray, moment: np.ndarray, *,
     x, y = 0.0, 0.0
     rank = 0
     r = P.hull_basis.shape[1]
+    if r == 6 and kernels.ENABLED:       # steps (4)-(7) compiled, when (5)'s fast path holds
+        A, b, V, margin, status = kernels.wrench_slice(
+            P.A, P.b, np.array((fx, fy, fz, Lx, Ly, Lz)), distance_tol, _PARALLEL,
+            max(wrench_tol, const_tol * search_radius))
+        if status == 2:
+            raise InputError(_UNBOUNDED)
+        if status == 0 and margin >= _CENTRED * distance_tol:
+            return ComRegion(2, V, A, b, margin, {'rows': rows, 'interior_point': np.zeros(2)})
     if r == 5:                           # two stance legs: one equality, in scalars
         (E0, E1, E2, E3, E4, E5), = P.equalities[0].tolist()
         gx, gy = fy * E5 - fz * E4, fz * E3 - fx * E5          # G = E D
@@ -729,6 +737,11 @@ def _empty(rows: int) -> ComRegion:
 
 def _wrench(force: np.ndarray, moment: np.ndarray) -> list[float]:
     """Return ``[f; L']`` as 6 Python floats, or raise InputError naming the bad vector."""
+    if type(force) is np.ndarray and type(moment) is np.ndarray and force.shape == (3,) \
+            and moment.shape == (3,) and force.dtype == moment.dtype == np.float64:
+        out = force.tolist() + moment.tolist()      # the hot path: checked in one step
+        if all(map(math.isfinite, out)):
+            return out
     out = []
     for name, x in (('force', force), ('moment', moment)):
         try:

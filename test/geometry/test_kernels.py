@@ -342,3 +342,61 @@ def test_projected_polygon_is_the_projection_of_the_lp(seed):
                        method='highs').status == 0
     # No delta balances a wrench far outside: empty (status 1).
     assert kernels.projected_polygon(G, leg, K, w0 + 1e3, D, 1e-10)[1] == 1
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_the_implied_unilateral_row_is_dropped_only_when_implied(seed):
+    """``-n . f <= 0`` is implied by a pyramid with mu > 0: same vertices without it."""
+    from awp_ros.wrench.friction_polytope import friction_rows
+    rng = np.random.default_rng(seed)
+    normal = rng.normal(size=3) + np.array([0.0, 0.0, 3.0])
+    normal /= np.linalg.norm(normal)
+    for sides in (3, 4, 6):
+        for mu in (0.05, 0.5, 1.0):
+            R = friction_rows(normal[None], np.array([mu]), sides)[0]
+            assert kernels._needed_rows(R) == sides       # the last row, -n, dropped
+            box = np.vstack([np.eye(3), -np.eye(3)])
+            A = np.vstack([box, R])
+            b = np.concatenate([rng.uniform(50, 100, 6), np.zeros(R.shape[0])])
+            with_row = kernels.leg_vertices(A, b)
+            without = kernels.leg_vertices(A[:-1], b[:-1])
+            assert with_row.shape == without.shape
+            gap = np.linalg.norm(with_row[:, None] - without[None], axis=2)
+            assert gap.min(axis=0).max() < 1e-9 and gap.min(axis=1).max() < 1e-9
+    # A last row that the others do not imply is kept.
+    R = friction_rows(normal[None], np.array([0.5]), 4)[0].copy()
+    R[-1] = rng.normal(size=3)
+    assert kernels._needed_rows(R) == 5
+    R[-1] = -R[:-1].sum(axis=0)                      # the sum reversed: not implied
+    assert kernels._needed_rows(R) == 5
+
+
+def test_wrench_slice_equals_the_numpy_path_of_com_region():
+    """The compiled steps (4)-(7) against com_region's numpy code: HyQ's CWC and FWP slices."""
+    from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+    from awp_ros.wrench.com_region import com_region
+    ev = FeasibilityEvaluator('hyq')
+    state = ev.standing_state()
+    names = list(state.joint_positions)
+    q0 = np.array([state.joint_positions[n] for n in names])
+    rng = np.random.default_rng(4)
+    fast_paths = 0
+    for trial in range(30):
+        state.joint_positions = dict(zip(names, (q0 + rng.uniform(-0.15, 0.15, q0.size))
+                                         .tolist()))
+        result = ev.evaluate(state, fws=False)
+        # CoM offsets inside and outside the regions: both the fast path and the fallback.
+        force = result.wrench[:3] * rng.uniform(0.5, 2.0)
+        moment = result.wrench[3:] + rng.normal(scale=20.0, size=3) * (trial % 3 == 2)
+        for P in (result.cwc, result.fwp.polytope):
+            assert P.hull_basis.shape[1] == 6
+            fast = com_region(P, force, moment)
+            slow = _numpy(com_region, P, force, moment)
+            assert fast.dimension == slow.dimension
+            if fast.dimension == 2:
+                shift = int(np.argmin(np.linalg.norm(slow.vertices - fast.vertices[0], axis=1)))
+                np.testing.assert_allclose(np.roll(slow.vertices, -shift, axis=0),
+                                           fast.vertices, atol=1e-9)
+                assert fast.margin == pytest.approx(slow.margin, abs=1e-9)
+                fast_paths += slow.margin > 1e-6
+    assert fast_paths >= 20
