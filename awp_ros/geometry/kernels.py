@@ -1077,6 +1077,7 @@ def _simplex(T, basis, cost, kind, d, max_iter, live):
     """
     m = T.shape[0]
     N = T.shape[1] - 1
+    row = np.empty(N + 1)
     _reduced_costs(T, basis, cost, d, live)
     fresh = True
     for it in range(max_iter):
@@ -1115,16 +1116,20 @@ def _simplex(T, basis, cost, kind, d, max_iter, live):
         if leave < 0:
             return 1
         piv = T[leave, enter]
+        for j in range(live):                        # the pivot row, apart: no aliasing
+            row[j] = T[leave, j] / piv
+        row[N] = T[leave, N] / piv
         for j in range(live):
-            T[leave, j] /= piv
-        T[leave, N] /= piv
+            T[leave, j] = row[j]
+        T[leave, N] = row[N]
         for i in range(m):
             if i != leave:
                 f = T[i, enter]
                 if f != 0.0:
+                    Ti = T[i]
                     for j in range(live):
-                        T[i, j] -= f * T[leave, j]
-                    T[i, N] -= f * T[leave, N]
+                        Ti[j] -= f * row[j]
+                    Ti[N] -= f * row[N]
         basis[leave] = enter
         if it % 16 == 15:
             _reduced_costs(T, basis, cost, d, live)
@@ -1132,7 +1137,7 @@ def _simplex(T, basis, cost, kind, d, max_iter, live):
         else:
             f = d[enter]
             for j in range(live):
-                d[j] -= f * T[leave, j]
+                d[j] -= f * row[j]
             d[enter] = 0.0
             fresh = False
     return 2
