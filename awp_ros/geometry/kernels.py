@@ -1062,7 +1062,7 @@ def _reduced_costs(T, basis, cost, d, live):
 
 
 @_jit(inline=True)
-def _simplex(T, basis, cost, kind, d, max_iter, live):
+def _simplex(T, basis, cost, kind, d, row, max_iter, live):
     """
     Minimise ``cost . z`` from the feasible basis of the tableau ``T = B^-1 [A | rhs]``.
 
@@ -1073,11 +1073,11 @@ def _simplex(T, basis, cost, kind, d, max_iter, live):
     recomputed from ``cost`` every 16 pivots and before optimality is declared. Only the
     first ``live`` columns (and the last) are kept up to date: the others are fixed
     variables that can never enter again (phase 1's artificials, once it is over), and no
-    step reads their columns. Returns 0 optimal, 1 unbounded, 2 iteration limit.
+    step reads their columns. ``row`` (a buffer of ``T``'s row length) holds the pivot row.
+    Returns 0 optimal, 1 unbounded, 2 iteration limit.
     """
     m = T.shape[0]
     N = T.shape[1] - 1
-    row = np.empty(N + 1)
     _reduced_costs(T, basis, cost, d, live)
     fresh = True
     for it in range(max_iter):
@@ -1144,12 +1144,12 @@ def _simplex(T, basis, cost, kind, d, max_iter, live):
 
 
 @_jit(inline=True)
-def _support_point(T, basis, cost, kind, d, u, n, out):
+def _support_point(T, basis, cost, kind, d, row, u, n, out):
     """Solve ``max u . delta`` from the current basis; write delta to ``out``; status."""
     for j in range(cost.shape[0]):
         cost[j] = 0.0
     cost[n], cost[n + 1] = -u[0], -u[1]
-    status = _simplex(T, basis, cost, kind, d, 4000, n + 2)
+    status = _simplex(T, basis, cost, kind, d, row, 4000, n + 2)
     out[0] = out[1] = 0.0
     N = T.shape[1] - 1
     for i in range(T.shape[0]):
@@ -1225,6 +1225,7 @@ def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
     kind[n] = kind[n + 1] = 1
     cost = np.zeros(N)
     d = np.empty(N)
+    row = np.empty(N + 1)                            # the pivot row, one buffer for all LPs
     first = np.full(K, -1, dtype=np.int64)
     for j in range(n):
         if first[leg[j]] < 0 or T[2, j] > T[2, first[leg[j]]]:
@@ -1250,7 +1251,7 @@ def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
         T[i, n + 2 + i] = 1.0
         basis[i] = n + 2 + i
         cost[n + 2 + i] = 1.0
-    status = _simplex(T, basis, cost, kind, d, 4000, N)
+    status = _simplex(T, basis, cost, kind, d, row, 4000, N)
     vertices = np.empty((max_lps + 3, 2))
     if status != 0:
         return vertices[:0], 2
@@ -1273,7 +1274,7 @@ def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
     for t in range(3):
         angle = 2.0 * np.pi * t / 3.0
         u[0], u[1] = np.cos(angle), np.sin(angle)
-        if _support_point(T, basis, cost, kind, d, u, n, p) != 0:
+        if _support_point(T, basis, cost, kind, d, row, u, n, p) != 0:
             return vertices[:0], 2
         lps += 1
         if k > 0 and abs(p[0] - vertices[k - 1, 0]) + abs(p[1] - vertices[k - 1, 1]) <= tol:
@@ -1295,7 +1296,7 @@ def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
             continue
         if lps >= max_lps:
             return vertices[:0], 2
-        if _support_point(T, basis, cost, kind, d, u, n, p) != 0:
+        if _support_point(T, basis, cost, kind, d, row, u, n, p) != 0:
             return vertices[:0], 2
         lps += 1
         if u[0] * (p[0] - a0) + u[1] * (p[1] - a1) <= tol:
@@ -1361,7 +1362,8 @@ def _feasible_polygon(FA, Fb, R, P, w0, D, tol, max_lps):
         b[:m0] = Fb[k]
         A[m0:] = R[k]
         b[m0:] = 0.0
-        V = _leg_vertices(A[:m0 + _needed_rows(R[k])], b, 1e-9)
+        mk = m0 + _needed_rows(R[k])
+        V = _leg_vertices(A[:mk], b[:mk], 1e-9)
         if V.shape[0] == 0:
             return np.empty((0, 2)), 1
         for v in range(V.shape[0]):
