@@ -13,10 +13,17 @@ node ``_<node>_evaluate`` in the node's namespace) that advertises the node's re
 service name (``/awp_node/evaluate`` by default; remapped and namespaced like the node's
 ``~/evaluate``). The node process does nothing per query: it only sends the worker its
 robot config and pipeline parameters at startup and after every accepted parameter change
-(length-prefixed pickles over the worker's stdin). The worker runs under the ``SCHED_IDLE``
-policy (Linux; else ``nice`` +:data:`NICE`): it gets a core only when nothing else wants it,
-and a woken node thread preempts it at once, so that on a busy machine the live stream wins
-the cores (and the queries wait).
+(length-prefixed pickles over the worker's stdin). The worker evaluates in a thread of its
+own under the ``SCHED_IDLE`` policy (Linux; else ``nice`` +:data:`NICE`,
+:func:`lower_thread_priority`): it gets a core only when nothing else wants it, and a woken
+node thread preempts it at once, so that on a busy machine the live stream wins the cores (and
+the queries wait). Only that thread: the worker's DDS threads and the executor thread that
+receives the request and sends the response keep the normal policy. With the whole worker
+at ``SCHED_IDLE`` (as before), its DDS threads starved while the node and the stream kept the
+cores busy, and the node's reports were late by ~300 ms (p50) for as long as a query ran,
+against +0.1 ms for the same CPU work at ``SCHED_IDLE`` in a process without DDS (measured
+with :mod:`awp_ros.soak.query_load` ``--alternate``); a starving thread that holds a lock
+the node's participant waits for is the likely mechanism (not identified further).
 
 Semantics of a request (:func:`evaluate_request`), the live pipeline's for each state with
 these differences: every state stands alone (no stamps are compared, no history: the motion
@@ -59,6 +66,7 @@ import argparse
 from collections.abc import Callable
 import os
 import pickle
+import queue
 import select
 import signal
 import subprocess
@@ -85,7 +93,8 @@ from awp_ros.ros.conversions import (report_msg, robot_state_from_msgs, stamp_to
 from awp_ros.ros.pipeline import MAX_REASON_CHARS, unevaluated_report
 from awp_ros.runtime import tune_process
 
-__all__ = ['EvaluateService', 'MAX_RESTARTS', 'NICE', 'evaluate_request', 'main']
+__all__ = ['EvaluateService', 'MAX_RESTARTS', 'NICE', 'evaluate_request', 'lower_thread_priority',
+           'main']
 
 _S = FeasibilityReport
 
@@ -346,6 +355,8 @@ class _Worker:
         self._fd = fd
         self._cond = threading.Condition()
         self._busy = False
+        self._idle = _IdleThread()
+        self.priority = self._idle.policy
 
     def configure(self, config: RobotConfig | None, params: PipelineParams, error: str) -> None:
         evaluator = None
@@ -363,7 +374,7 @@ class _Worker:
             while not self.stop.is_set() and (self._busy or _readable(self._fd)):
                 self._cond.wait(0.05)
         evaluator, params, error = self.current
-        return evaluate_request(evaluator, params, request, error=error)
+        return self._idle.call(evaluate_request, evaluator, params, request, error=error)
 
     def read_updates(self, out) -> None:
         """Apply every update from the node until its end of the pipe, then stop."""
@@ -390,6 +401,56 @@ class _Worker:
         self.stop.set()
         with self._cond:
             self._cond.notify_all()
+
+
+def lower_thread_priority() -> str:
+    """
+    Give the calling thread the lowest CPU priority: ``SCHED_IDLE`` (Linux), else +NICE.
+
+    Linux applies both to the calling thread only (``sched_setscheduler`` and ``nice`` act
+    on a thread id). :return: the policy set (``'SCHED_IDLE'``, ``'nice +10'`` or ``''``).
+    """
+    try:
+        os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+        return 'SCHED_IDLE'
+    except (AttributeError, OSError):
+        try:
+            os.nice(NICE)
+            return f'nice +{NICE}'
+        except OSError:
+            return ''
+
+
+class _IdleThread:
+    """One thread at the lowest CPU priority that runs the calls given to :meth:`call`."""
+
+    def __init__(self) -> None:
+        self._jobs: queue.SimpleQueue = queue.SimpleQueue()
+        self.policy = ''
+        self._ready = threading.Event()
+        threading.Thread(target=self._run, daemon=True, name='awp_evaluate_idle').start()
+        self._ready.wait()
+
+    def call(self, fn: Callable, *args, **kwargs):
+        """Run ``fn(*args, **kwargs)`` in the thread; return its value or raise its error."""
+        done, box = threading.Event(), []
+        self._jobs.put((fn, args, kwargs, done, box))
+        done.wait()
+        ok, value = box[0]
+        if not ok:
+            raise value
+        return value
+
+    def _run(self) -> None:
+        self.policy = lower_thread_priority()
+        self._ready.set()
+        while True:
+            fn, args, kwargs, done, box = self._jobs.get()
+            try:
+                box.append((True, fn(*args, **kwargs)))
+            except BaseException as exc:  # noqa: B902 -- handed to the caller
+                box.append((False, exc))
+            done.set()
 
 
 def _readable(fd: int) -> bool:
@@ -429,14 +490,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--namespace', default='/')
     args = parser.parse_args(argv)
     signal.signal(signal.SIGINT, signal.SIG_IGN)       # Ctrl-C is the node's; it closes us
-    try:        # every thread so far (BLAS); rclpy's, started later, inherit the policy
-        for task in os.listdir('/proc/self/task'):
-            os.sched_setscheduler(int(task), os.SCHED_IDLE, os.sched_param(0))
-    except (AttributeError, OSError):
-        try:
-            os.nice(NICE)
-        except OSError:
-            pass
     tune_process()      # one BLAS thread: idle OpenBLAS threads spin on the node's cores
     import rclpy
     from rclpy.executors import SingleThreadedExecutor
@@ -461,7 +514,8 @@ def main(argv: list[str] | None = None) -> int:
         try:
             executor = SingleThreadedExecutor()
             executor.add_node(node)
-            _report(stdout, 'info', f'{args.service} ready (worker pid {os.getpid()})')
+            _report(stdout, 'info', f'{args.service} ready (worker pid {os.getpid()}, '
+                    f'evaluating at {worker.priority or "the normal priority"})')
             while rclpy.ok() and not worker.stop.is_set():
                 executor.spin_once(timeout_sec=0.2)
         except Exception as exc:  # noqa: BLE001 -- reported to the node, which restarts us
