@@ -64,9 +64,9 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 import os
 import pickle
-import queue
 import select
 import signal
 import subprocess
@@ -355,8 +355,7 @@ class _Worker:
         self._fd = fd
         self._cond = threading.Condition()
         self._busy = False
-        self._idle = _IdleThread()
-        self.priority = self._idle.policy
+        self._idle, self.priority = _idle_executor()     # the policy queries run at
 
     def configure(self, config: RobotConfig | None, params: PipelineParams, error: str) -> None:
         evaluator = None
@@ -374,7 +373,8 @@ class _Worker:
             while not self.stop.is_set() and (self._busy or _readable(self._fd)):
                 self._cond.wait(0.05)
         evaluator, params, error = self.current
-        return self._idle.call(evaluate_request, evaluator, params, request, error=error)
+        return self._idle.submit(evaluate_request, evaluator, params, request,
+                                 error=error).result()
 
     def read_updates(self, out) -> None:
         """Apply every update from the node until its end of the pipe, then stop."""
@@ -421,36 +421,10 @@ def lower_thread_priority() -> str:
             return ''
 
 
-class _IdleThread:
-    """One thread at the lowest CPU priority that runs the calls given to :meth:`call`."""
-
-    def __init__(self) -> None:
-        self._jobs: queue.SimpleQueue = queue.SimpleQueue()
-        self.policy = ''
-        self._ready = threading.Event()
-        threading.Thread(target=self._run, daemon=True, name='awp_evaluate_idle').start()
-        self._ready.wait()
-
-    def call(self, fn: Callable, *args, **kwargs):
-        """Run ``fn(*args, **kwargs)`` in the thread; return its value or raise its error."""
-        done, box = threading.Event(), []
-        self._jobs.put((fn, args, kwargs, done, box))
-        done.wait()
-        ok, value = box[0]
-        if not ok:
-            raise value
-        return value
-
-    def _run(self) -> None:
-        self.policy = lower_thread_priority()
-        self._ready.set()
-        while True:
-            fn, args, kwargs, done, box = self._jobs.get()
-            try:
-                box.append((True, fn(*args, **kwargs)))
-            except BaseException as exc:  # noqa: B902 -- handed to the caller
-                box.append((False, exc))
-            done.set()
+def _idle_executor() -> tuple[ThreadPoolExecutor, str]:
+    """Return a one-thread executor whose thread runs at the lowest priority, and that policy."""
+    pool = ThreadPoolExecutor(1, thread_name_prefix='awp_evaluate_idle')
+    return pool, pool.submit(lower_thread_priority).result()
 
 
 def _readable(fd: int) -> bool:

@@ -6,7 +6,7 @@ import threading
 
 import pytest
 
-from awp_ros.node.evaluate_service import _IdleThread, lower_thread_priority
+from awp_ros.node.evaluate_service import _idle_executor, lower_thread_priority
 
 linux_only = pytest.mark.skipif(not sys.platform.startswith('linux'),
                                 reason='per-thread scheduling policies are Linux')
@@ -30,10 +30,11 @@ def test_lower_thread_priority_changes_the_calling_thread_only():
 
 @linux_only
 def test_the_idle_thread_runs_calls_at_sched_idle_and_hands_back_values_and_errors():
-    idle = _IdleThread()
-    assert idle.policy == 'SCHED_IDLE'
-    assert idle.call(lambda: os.sched_getscheduler(0)) == os.SCHED_IDLE
-    assert idle.call(divmod, 7, 2) == (3, 1)
+    idle, policy = _idle_executor()
+    assert policy == 'SCHED_IDLE'
+    assert idle.submit(lambda: os.sched_getscheduler(0)).result() == os.SCHED_IDLE
+    assert idle.submit(divmod, 7, 2).result() == (3, 1)
     with pytest.raises(ZeroDivisionError):
-        idle.call(divmod, 1, 0)
+        idle.submit(divmod, 1, 0).result()
     assert os.sched_getscheduler(0) != os.SCHED_IDLE
+    idle.shutdown()
