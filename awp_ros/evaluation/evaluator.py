@@ -67,7 +67,7 @@ from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
 from awp_ros.wrench.friction_polytope import friction_rows, FrictionPolytopes, vertex_inside
 from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope, feasible_wrench_polytope
 
-__all__ = ['FeasibilityEvaluator', 'STAGES']
+__all__ = ['compute_fws', 'FeasibilityEvaluator', 'STAGES']
 
 #: The per-cycle stages of :meth:`FeasibilityEvaluator.evaluate`, in order.
 STAGES = ('validate', 'model', 'force_polytopes', 'friction_polytopes', 'awp', 'cwc_fwp',
@@ -239,34 +239,43 @@ class FeasibilityEvaluator:
 
         :return: ``result``, updated in place.
         """
-        clock = time.perf_counter
-        tol = self.feasibility_tol
-        w = result.wrench
-        t0 = clock()
-        if result.legs:
-            p = np.array([leg.position for leg in result.legs.values()])
-            S = feasible_wrench_set(p, [leg.friction_polytope for leg in result.legs.values()])
-        else:
-            S = _origin_set()
-        t1 = clock()
-        plus, minus = directional_margins(S, w, feasibility_tol=tol)
-        t2 = clock()
-        fws_r = WrenchSetResult.from_margin('fws', S, polytope_margin(
-            S, w, feasibility_tol=tol, hull_tol=self.hull_tol))
-        t3 = clock()
+        return self.attach_fws(result, compute_fws(*self.fws_job(result)))
+
+    def fws_job(self, result: FeasibilityResult) -> tuple:
+        """
+        Return the picklable arguments of :func:`compute_fws` for an evaluated state.
+
+        What :meth:`add_fws` computes, as data: the node hands it to a worker process
+        (``fws_lag_s``) and attaches the answer with :meth:`attach_fws`; the numbers are the
+        same as :meth:`add_fws`'s (same function, same arguments).
+        """
+        legs = list(result.legs.values())
+        positions = np.array([leg.position for leg in legs]) if legs else np.zeros((0, 3))
+        return (positions, [leg.friction_polytope for leg in legs], result.wrench,
+                self.feasibility_tol, self.hull_tol)
+
+    def attach_fws(self, result: FeasibilityResult, part: tuple) -> FeasibilityResult:
+        """
+        Store :func:`compute_fws`'s answer for ``result`` in ``result.fws`` (see :meth:`add_fws`).
+
+        Adds the feasible region (the per-cycle projection, else the FWS's slice) and the
+        capture point's margin to it, and the FWS timings.
+
+        :return: ``result``, updated in place.
+        """
+        S, margin, plus, minus, times = part
+        t0 = time.perf_counter()
+        fws_r = WrenchSetResult.from_margin('fws', S, margin)
         fws_r.directional = {axis: (float(a), float(b)) for axis, a, b in zip(AXES, plus, minus)}
         # The same set as the FWS's slice: the per-cycle projection when there is one.
         fws_r.region = result.feasible_region_per_cycle
         if fws_r.region is None:
-            fws_r.region = _region(S, w, 'feasible region', result.warnings)
+            fws_r.region = _region(S, result.wrench, 'feasible region', result.warnings)
         fws_r.capture_point_margin = _point_margin(fws_r.region, result.capture_point)
-        t4 = clock()
         result.fws = fws_r
         tm = result.timings_ms
-        tm['fws'] = 1e3 * (t1 - t0)
-        tm['fws_directional'] = 1e3 * (t2 - t1)
-        tm['fws_margin'] = 1e3 * (t3 - t2)
-        tm['feasible_region'] = 1e3 * (t4 - t3)
+        tm['fws'], tm['fws_directional'], tm['fws_margin'] = times
+        tm['feasible_region'] = 1e3 * (time.perf_counter() - t0)
         return result
 
     def with_wrench(self, result: FeasibilityResult, wrench: np.ndarray, *,
@@ -442,6 +451,31 @@ class FeasibilityEvaluator:
             except InputError as exc:
                 raise InputError(f'state {i}: {exc}') from exc
         return results
+
+
+def compute_fws(positions: np.ndarray, frictions: Sequence[Polytope], wrench: np.ndarray,
+                feasibility_tol: float, hull_tol: float) -> tuple:
+    r"""
+    Return the FWS of stance legs and a wrench's margins to it (the core of ``add_fws``).
+
+    :math:`\mathcal{S} = \bigoplus_k \{[f; p_k \times f] : f \in F_k\}`, each leg's
+    friction-bounded force polytope :math:`F_k` [N] lifted at its foot :math:`p_k` [m]
+    (relative to the CoM, world-aligned), then the signed Euclidean margin and the
+    directional margins of ``wrench`` ``[f; tau]`` [N, N.m]. A pure function of its
+    arguments: the node may run it in another process.
+
+    :return: ``(S, margin, plus, minus, (fws_ms, directional_ms, margin_ms))``.
+    """
+    clock = time.perf_counter
+    t0 = clock()
+    S = feasible_wrench_set(np.asarray(positions), list(frictions)) if len(frictions) \
+        else _origin_set()
+    t1 = clock()
+    plus, minus = directional_margins(S, wrench, feasibility_tol=feasibility_tol)
+    t2 = clock()
+    margin = polytope_margin(S, wrench, feasibility_tol=feasibility_tol, hull_tol=hull_tol)
+    t3 = clock()
+    return S, margin, plus, minus, (1e3 * (t1 - t0), 1e3 * (t2 - t1), 1e3 * (t3 - t2))
 
 
 def _origin_set() -> Polytope:

@@ -82,6 +82,7 @@ from visualization_msgs.msg import MarkerArray
 from awp_ros.errors import AwpError
 from awp_ros.node.diagnostics import NodeDiagnostics
 from awp_ros.node.evaluate_service import EvaluateService
+from awp_ros.node.fws_worker import FwsRunner
 from awp_ros.node.input_drain import InputDrain
 from awp_ros.node.lifecycle import run_node
 from awp_ros.node.marker_worker import MarkerWorker
@@ -105,6 +106,8 @@ class AwpNode(Node):
     def __init__(self, node_name: str = 'awp_node', **kwargs) -> None:
         super().__init__(node_name, **kwargs)
         self.pipeline: Pipeline | None = None
+        # fws_lag_s > 0: the FWS in a worker process (started on first use).
+        self.fws_runner = FwsRunner(self._output_error)
         self.parameters = NodeParameters(
             self, self._apply_parameters,
             lambda: None if self.pipeline is None else self.pipeline.root_link)
@@ -119,6 +122,7 @@ class AwpNode(Node):
             try:
                 self.pipeline = Pipeline(self.parameters.robot_config(), p,
                                          input_buffer=self.parameters.value('qos_depth'))
+                self.pipeline.fws_runner = self.fws_runner
                 self.parameters.declare_torque_limits(self.pipeline.evaluator.model)
             except (AwpError, ValueError) as exc:
                 self.model_error = f'no robot model: {exc}'
@@ -150,7 +154,9 @@ class AwpNode(Node):
         self.get_logger().info(
             f'robot {c.robot_name!r}, feet {list(c.feet)}; inputs {inputs}; outputs '
             f'{self.pub_report.topic_name} (every joint state), FWS '
-            f'{"every cycle" if p.fws_rate_hz == 0 else f"{p.fws_rate_hz:g} Hz"}, markers '
+            f'{"every cycle" if p.fws_rate_hz == 0 else f"{p.fws_rate_hz:g} Hz"}'
+            f'{f" in a worker process, {p.fws_lag_s:g} s behind" if p.fws_lag_s > 0 else ""}'
+            ', markers '
             f'{"off" if p.marker_rate_hz == 0 else f"{p.marker_rate_hz:g} Hz"}')
 
     def _apply_parameters(self, evaluator, params: PipelineParams) -> None:
@@ -158,6 +164,7 @@ class AwpNode(Node):
         if evaluator is not None and self.pipeline is None:
             self.pipeline = Pipeline(evaluator, params,
                                      input_buffer=self.parameters.value('qos_depth'))
+            self.pipeline.fws_runner = self.fws_runner
             if self._last_contacts is not None:
                 self.pipeline.on_contacts(self._last_contacts)
                 self._last_contacts = None
@@ -234,6 +241,8 @@ class AwpNode(Node):
                                 self.context, budget_s=self.parameters.value('drain_budget_s'))
         self.sub_reference = self.create_subscription(
             WrenchStamped, '~/wrench_reference', self._on_wrench_reference, qos_big)
+        if p.fws_lag_s > 0.0:       # started now: it warms up before the first joint state
+            self.fws_runner.start()
         self.marker_worker = None
         if self.parameters.value('marker_worker') and p.marker_rate_hz > 0.0:
             self.marker_worker = MarkerWorker(self.pub_markers.publish, self._output_error)
@@ -371,9 +380,10 @@ class AwpNode(Node):
         self.get_logger().error(reason, throttle_duration_sec=1.0)
 
     def destroy_node(self) -> None:
-        """Stop the marker worker, release the drain's wait set, destroy the node."""
+        """Stop the workers, release the drain's wait set, destroy the node."""
         if self.marker_worker is not None:
             self.marker_worker.close()
+        self.fws_runner.close()
         self.evaluate_service.close()
         self.drain.close()
         super().destroy_node()

@@ -131,8 +131,8 @@ class NodeParameters:
             node.get_logger().error(reason)
             self.config_errors.append(reason)
             return node.declare_parameter(name, default, desc, ignore_override=True)
-        if name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz', 'diagnostics_period_s',
-                    'max_queue_delay_s', 'drain_budget_s'):
+        if name in ('stale_timeout_s', 'fws_rate_hz', 'fws_lag_s', 'marker_rate_hz',
+                    'diagnostics_period_s', 'max_queue_delay_s', 'drain_budget_s'):
             desc.floating_point_range = [FloatingPointRange(from_value=0.0, to_value=1e6)]
         if name == 'qos_depth':
             desc.integer_range = [IntegerRange(from_value=1, to_value=1_000_000)]

@@ -147,6 +147,12 @@ class PipelineParams:
         10.0, 'rate of the FWS computation (H-rep, directional and Euclidean '
         'margins) by joint-state stamps [Hz]; 0 = every cycle; a stance change '
         'forces it')
+    fws_lag_s: float = _param(
+        0.0, 'FWS off the joint-state loop [s]: an FWS due at stamp t is computed beside '
+        'the loop (the node: in a worker process) and enters the reports from the '
+        'first joint state stamped >= t + fws_lag_s, the same in the node and the '
+        'replay; after a stance change, until its FWS arrives, fws_* are NaN and '
+        'feasible is fwp_feasible; 0 = in the loop, in the cycle it is due')
     marker_rate_hz: float = _param(
         30.0, 'marker publication rate by joint-state stamps [Hz]; 0 = no markers')
     marker_force_scale: float = _param(
@@ -236,7 +242,8 @@ class PipelineParams:
         if not all(isinstance(j, str) and j for j in self.ignored_joints):
             raise ConfigError(f'ignored_joints must be a list of joint names, got '
                               f'{list(self.ignored_joints)!r}')
-        for name in ('stale_timeout_s', 'fws_rate_hz', 'marker_rate_hz', 'max_queue_delay_s',
+        for name in ('stale_timeout_s', 'fws_rate_hz', 'fws_lag_s', 'marker_rate_hz',
+                     'max_queue_delay_s',
                      'hull_tolerance', 'contact_force_on_n', 'contact_force_off_n',
                      'contacts_timeout_s', 'joint_states_timeout_s'):
             value = getattr(self, name)

@@ -227,8 +227,8 @@ def _set_fields(msg: FeasibilityReport, name: str, s: WrenchSetResult | None) ->
 
 def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float,
                fws: WrenchSetResult | None = None, fws_stamp: Time | None = None,
-               status: int | None = None, status_message: str | None = None
-               ) -> FeasibilityReport:
+               status: int | None = None, status_message: str | None = None,
+               fws_pending: bool = False) -> FeasibilityReport:
     """
     Return the ``FeasibilityReport`` of an evaluation.
 
@@ -244,6 +244,8 @@ def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float
     :param fws_stamp: stamp of the joint state ``fws`` was computed for (default the header's).
     :param status: STATUS_* constant (default OK, or WARNING when the result has warnings).
     :param status_message: default the warnings joined with ``'; '``.
+    :param fws_pending: no FWS of this stance yet, it is being computed (``fws_lag_s``):
+        ``feasible`` is then ``fwp_feasible`` (``fws`` must be None).
     """
     msg = FeasibilityReport()
     msg.header = header
@@ -274,7 +276,7 @@ def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float
         msg.fws_directional_minus = _NAN6.copy()
     if fws is not None:
         msg.fws_stamp = header.stamp if fws_stamp is None else fws_stamp
-    msg.feasible = bool(msg.fwp_feasible and msg.fws_feasible)
+    msg.feasible = bool(msg.fwp_feasible and (msg.fws_feasible or fws_pending and fws is None))
     # The regions are this cycle's: an FWS of an earlier joint state does not give them.
     fresh = fws is not None and (fws_stamp is None or fws_stamp == header.stamp)
     _set_regions(msg, result, fws if fresh else None)

@@ -29,6 +29,9 @@ class Cycle:
     :ivar report: the FeasibilityReport (always).
     :ivar result: the evaluation, or None when the message was not evaluated.
     :ivar fws_computed: whether the FWS was computed for this message.
+
+    ``released_fws``: ``(stamp, result, reference point)`` of a lagged FWS released in this
+    cycle (``fws_lag_s``): :meth:`fws` publishes it, stamped with its own joint state's stamp.
     :ivar markers_due: whether markers are published for this message.
     """
 
@@ -36,7 +39,7 @@ class Cycle:
                  result: FeasibilityResult | None, *, fws_computed: bool, markers_due: bool,
                  marker_header: Header, marker_frame: tuple, style: MarkerStyle,
                  reference_point: np.ndarray, latest_fws: WrenchSetResult | None,
-                 pyramid_sides: int) -> None:
+                 pyramid_sides: int, released_fws: tuple | None = None) -> None:
         self.header = header
         self.report = report
         self.result = result
@@ -48,6 +51,7 @@ class Cycle:
         self._reference_point = reference_point
         self._latest_fws = latest_fws
         self._sides = pyramid_sides
+        self._released_fws = released_fws
         self._cache: dict = {}
 
     @classmethod
@@ -81,8 +85,17 @@ class Cycle:
         return self._wrench('fwp')
 
     def fws(self) -> WrenchPolytope | None:
-        """Return the FWS message when it was computed for this message, else None."""
-        return self._wrench('fws')
+        """
+        Return the FWS message when it was computed for (or released in) this message.
+
+        None otherwise. A released lagged FWS carries the stamp of the joint state it was
+        computed for.
+        """
+        if self._released_fws is None:
+            return self._wrench('fws')
+        stamp, r, ref = self._released_fws
+        return self._cached('fws', True, lambda h: wrench_polytope_msg(
+            Header(stamp=stamp, frame_id=h.frame_id), 'fws', r.stance, ref, r.fws.polytope))
 
     def feasible_region(self) -> PolygonStamped | None:
         """

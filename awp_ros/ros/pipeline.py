@@ -28,7 +28,11 @@ the wall clock:
 - ``awp``, ``fwp``, ``leg_polytopes`` every evaluated cycle; the FWS (H-rep, directional
   and Euclidean margins) when ``fws_rate_hz`` says so by stamp (0 = every cycle) or the
   stance set changed (which restarts the schedule: the next one comes a period later), the
-  reports carrying the latest FWS with its ``fws_stamp``;
+  reports carrying the latest FWS with its ``fws_stamp``. With ``fws_lag_s`` > 0 it is
+  computed beside the loop (:attr:`Pipeline.fws_runner`: the node's worker process) and
+  released in the first joint state stamped ``fws_lag_s`` after the one it was due for,
+  so node and replay still agree; after a stance change the reports carry no FWS until
+  the new stance's is released (``feasible`` is then ``fwp_feasible``);
 - ``markers`` throttled to ``marker_rate_hz`` by stamp (0 = never);
 - every output's ``header.stamp`` is the joint state's stamp; wrench data use the frame
   ``wrench_frame_id`` (CoM origin, world-aligned axes), markers ``marker_frame_id`` ('' = the
@@ -59,8 +63,8 @@ from std_msgs.msg import Header
 
 from awp_ros.errors import AwpError, ConfigError, InputError
 from awp_ros.estimation.motion import fill_motion, MotionEstimator
-from awp_ros.evaluation.evaluator import FeasibilityEvaluator
-from awp_ros.evaluation.result import WrenchSetResult
+from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator
+from awp_ros.evaluation.result import FeasibilityResult, WrenchSetResult
 from awp_ros.geometry.linalg import quaternion_matrix
 from awp_ros.robot.config import check_keys, load_config, RobotConfig
 from awp_ros.robot.parameters import PipelineParams, ros_parameters
@@ -116,6 +120,14 @@ class Pipeline:
         self._latest_fws: WrenchSetResult | None = None
         self._latest_fws_stamp: Time | None = None
         self._latest_fws_stance: tuple | None = None
+        # fws_lag_s > 0: FWS jobs submitted, not yet released (release stamp [ns], job
+        # stamp, result, cycle's reference point, handle) and the last submission's stance.
+        self._fws_pending: deque = deque()
+        self._submitted_stance: tuple | None = None
+        #: Runs the lagged FWS jobs: ``submit(job) -> handle`` with ``handle.result()``
+        #: returning :func:`~awp_ros.evaluation.evaluator.compute_fws`'s answer (the node
+        #: sets a worker process's; by default computed here, on release).
+        self.fws_runner = InlineFws()
         self._merger = self._new_merger()
         self._effort = self._new_effort_contacts()
 
@@ -169,6 +181,7 @@ class Pipeline:
         self.evaluator = evaluator
         self._joint_names = frozenset(evaluator.model.joint_names)
         self._latest_fws_stance = None
+        self._drop_pending_fws()
         self._estimator = self._new_estimator()
         self._evaluated.clear()
         self._merger = self._new_merger()
@@ -344,6 +357,7 @@ class Pipeline:
             notes.append(f'joint_states stamp went back by {(self._last_js_ns - ns) * 1e-9:.6g}'
                          ' s; throttles restarted')
             self._last_fws_ns = self._last_marker_ns = None
+            self._drop_pending_fws()
             self._merger.clear()
             self._effort.reset()
             self._last_js_ns = ns
@@ -355,6 +369,7 @@ class Pipeline:
             self._last_marker_ns = _advance(self._last_marker_ns, ns, p.marker_rate_hz)
         result = None
         fws_computed = False
+        released = None
         R = np.eye(3)
         source = p.contact_source
         contacts = self._contacts.pick(ns) if source == 'topic' else None
@@ -392,7 +407,11 @@ class Pipeline:
                 if p.use_imu:
                     R = quaternion_matrix(state.base_orientation)
                 by_rate = p.fws_rate_hz == 0.0 or _due(self._last_fws_ns, ns, p.fws_rate_hz)
-                if by_rate or result.stance != self._latest_fws_stance:
+                if p.fws_lag_s > 0.0:
+                    released = self._lagged_fws(result, ns, msg.header.stamp, by_rate,
+                                                R.T @ result.com)
+                elif by_rate or result.stance != self._latest_fws_stance:
+                    self._drop_pending_fws()
                     self.evaluator.add_fws(result)
                     fws_computed = True
                     # A stance change restarts the schedule: the FWS is never older than
@@ -408,7 +427,8 @@ class Pipeline:
                 status = _S.STATUS_WARNING if warnings else _S.STATUS_OK
                 report = report_msg(header, result, compute_time=0.0, fws=self._latest_fws,
                                     fws_stamp=self._latest_fws_stamp, status=status,
-                                    status_message='; '.join(warnings))
+                                    status_message='; '.join(warnings),
+                                    fws_pending=self._latest_fws is None)
         except InputError as exc:
             report = error_report(header, _S.STATUS_INVALID_INPUT, '; '.join(notes + [str(exc)]))
             result = None
@@ -434,7 +454,73 @@ class Pipeline:
         return Cycle(header, report, result, fws_computed=fws_computed,
                      markers_due=markers_due, marker_header=marker_header,
                      marker_frame=frame, style=style, reference_point=R.T @ com,
-                     latest_fws=self._latest_fws, pyramid_sides=self.config.pyramid_sides)
+                     latest_fws=self._latest_fws, pyramid_sides=self.config.pyramid_sides,
+                     released_fws=released)
+
+    def _lagged_fws(self, result: FeasibilityResult, ns: int, stamp: Time, by_rate: bool,
+                    reference_point: np.ndarray) -> tuple | None:
+        """
+        Submit the FWS when due, release those whose lag has passed (``fws_lag_s`` > 0).
+
+        Due as with no lag (``fws_rate_hz`` by stamp, or a stance change, which drops the
+        pending jobs of the old stance and the latest FWS: reports then carry no FWS until
+        the new stance's arrives). A job due at stamp ``t`` is released in the first
+        evaluated joint state stamped ``>= t + fws_lag_s``, waiting for it when it is
+        late: the reports depend on stamps only.
+
+        :return: ``(stamp, result, reference point)`` of the job released last in this
+            cycle (its ``~/fws`` message), or None.
+        """
+        p = self.params
+        if result.stance != self._submitted_stance:
+            self._drop_pending_fws()
+            self._latest_fws = self._latest_fws_stamp = None
+            self._latest_fws_stance = None
+        if by_rate or result.stance != self._submitted_stance:
+            self._last_fws_ns = _advance(self._last_fws_ns, ns, p.fws_rate_hz) \
+                if by_rate else ns
+            handle = self.fws_runner.submit(self.evaluator.fws_job(result))
+            self._fws_pending.append((ns + int(round(p.fws_lag_s * 1e9)), stamp, result,
+                                      reference_point, handle))
+            self._submitted_stance = result.stance
+        released = None
+        while self._fws_pending and self._fws_pending[0][0] <= ns:
+            _, job_stamp, job_result, ref, handle = self._fws_pending.popleft()
+            self.evaluator.attach_fws(job_result, handle.result())
+            self._latest_fws = job_result.fws
+            self._latest_fws_stamp = job_stamp
+            self._latest_fws_stance = job_result.stance
+            released = (job_stamp, job_result, ref)
+        return released
+
+    def _drop_pending_fws(self) -> None:
+        """Forget the lagged FWS jobs not yet released (their answers are ignored)."""
+        for *_, handle in self._fws_pending:
+            cancel = getattr(handle, 'cancel', None)
+            if cancel is not None:
+                cancel()
+        self._fws_pending.clear()
+        self._submitted_stance = None
+
+
+class InlineFws:
+    """Run lagged FWS jobs in this process, each when its answer is first asked for."""
+
+    class Handle:
+        """A job computed on :meth:`result` (once)."""
+
+        def __init__(self, job: tuple) -> None:
+            self._job, self._part = job, None
+
+        def result(self, timeout: float | None = None) -> tuple:
+            """Return :func:`~awp_ros.evaluation.evaluator.compute_fws` of the job."""
+            if self._part is None:
+                self._part = compute_fws(*self._job)
+            return self._part
+
+    def submit(self, job: tuple) -> InlineFws.Handle:
+        """Return a handle computing ``compute_fws(*job)`` when asked."""
+        return InlineFws.Handle(job)
 
 
 def _due(last_ns: int | None, ns: int, rate_hz: float) -> bool:

@@ -90,7 +90,8 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
                    namespace: str = '/query_load', env: dict[str, str] | None = None,
                    seed: int = 0, queries: bool = True,
                    command: list[str] | None = None, idle_caller: bool = False,
-                   control_s: float = 0.0, alternate: bool = False) -> dict:
+                   control_s: float = 0.0, alternate: bool = False,
+                   params: dict | None = None) -> dict:
     """
     Run one measurement (module docstring) and return its figures.
 
@@ -109,6 +110,7 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
         ``evaluate`` (FWS included) on the call's states for this long [s] at ``SCHED_IDLE``,
         no call and no DDS: what the same work costs the stream when the node has nothing to
         do with it.
+    :param params: more node parameters (name -> value), e.g. ``{'fws_lag_s': 0.03}``.
     :param alternate: every other window is the control (the caller at ``SCHED_IDLE``, the
         previous call's states for as long as that call took): calls and controls in the same
         run, ``paired_control_ms`` the controls' paired differences.
@@ -125,8 +127,8 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
     domain = int(env.get('ROS_DOMAIN_ID', '0') or 0)
     ns = namespace.rstrip('/')
     n_max = int(rate_hz * duration_s) + 1000
-    proc = start_node(env=env, robot=robot, namespace=ns, params={'qos_depth': n_max},
-                      command=command)
+    proc = start_node(env=env, robot=robot, namespace=ns,
+                      params={'qos_depth': n_max, **(params or {})}, command=command)
     probe = Probe(domain, 'awp_query_load_probe')
     stamps = np.zeros(n_max, dtype=np.int64)
     recv = np.zeros(n_max, dtype=np.int64)
@@ -383,6 +385,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--alternate', action='store_true',
                         help='every other window is the control (same states, as long as the '
                         'call before it): calls and controls in one run')
+    parser.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
+                        help='more node parameters, e.g. fws_lag_s:=0.03')
     parser.add_argument('--variant', choices=('worker', 'thread'), default='worker',
                         help='who answers ~/evaluate: the worker process (awp_node as it is) '
                         'or, for comparison, a thread of the node process')
@@ -394,9 +398,10 @@ def main(argv: list[str] | None = None) -> int:
                             namespace=args.namespace, seed=args.seed,
                             queries=not args.no_queries, command=command,
                             idle_caller=args.idle_caller, control_s=args.control,
-                            alternate=args.alternate)
-    result.update(variant=args.variant, idle_caller=args.idle_caller, control_s=args.control,
-                  alternate=args.alternate)
+                            alternate=args.alternate,
+                            params=dict(p.split(':=', 1) for p in args.param))
+    result.update(params=args.param, variant=args.variant, idle_caller=args.idle_caller,
+                  control_s=args.control, alternate=args.alternate)
     print(table(result))
     print(json.dumps(result))
     return 0 if result['missing'] == 0 else 1

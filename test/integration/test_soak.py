@@ -115,3 +115,36 @@ def test_load_shedding_answers_every_joint_state(ros_env):
     unshed_s = r.sent * eval_s
     assert r.drain_s < 0.25 * unshed_s, (r.drain_s, unshed_s)
     assert r.latency_after_warmup_ms['p50'] * 1e-3 < 0.25 * unshed_s, r.latency_after_warmup_ms
+
+
+def test_the_fws_off_the_loop_comes_lagged_by_stamps_over_dds(ros_env):
+    # fws_lag_s: the node computes the FWS in its worker process; every report carries the
+    # FWS of a joint state at least fws_lag_s earlier in the same stance, or none (just
+    # after a stance change: then feasible is the FWP's verdict).
+    lag_ns = 20_000_000
+    probe = Probe(int(ros_env['ROS_DOMAIN_ID']), 'awp_soak_test_lag')
+    reports = probe.subscribe(FeasibilityReport, '/soak/awp_node/report', depth=100000)
+    try:
+        r = run_soak(300.0, 4.0, env=ros_env, warmup_s=1.0, sample_period_s=0.25,
+                     params={'fws_lag_s': lag_ns * 1e-9})
+    finally:
+        probe.close()
+    assert r.node_alive and r.missing == 0 and r.duplicates == 0
+    assert set(r.status_counts) <= {'ok', 'warning'}, r.status_counts
+    assert len(reports) == r.reports == r.sent == 1200
+    stance, start, without = None, None, 0
+    fws_stamps = set()
+    for m in reports:
+        ns = m.header.stamp.sec * 10**9 + m.header.stamp.nanosec
+        if list(m.stance_feet) != stance:
+            stance, start = list(m.stance_feet), ns
+        if math.isnan(m.fws_margin):
+            without += 1
+            assert m.feasible == m.fwp_feasible
+            assert ns - start < lag_ns, (ns, start)
+            continue
+        t = m.fws_stamp.sec * 10**9 + m.fws_stamp.nanosec
+        assert start <= t <= ns - lag_ns, (start, t, ns)
+        assert m.feasible == (m.fwp_feasible and m.fws_feasible)
+        fws_stamps.add(t)
+    assert without > 0 and len(fws_stamps) >= 30, (without, len(fws_stamps))

@@ -1,0 +1,226 @@
+"""
+Compute the node's FWS in a worker process, off the joint-state loop (``fws_lag_s`` > 0).
+
+The FWS costs 8-25 ms (its H-rep, directional and Euclidean margins): computed in the loop it
+stalls a 1 kHz stream by that much at every FWS. With ``fws_lag_s`` > 0 the pipeline
+(:class:`awp_ros.ros.pipeline.Pipeline`) hands each FWS job (the arguments of
+:func:`awp_ros.evaluation.evaluator.compute_fws`: feet [m], friction-bounded force polytopes
+[N], the wrench [N, N.m], tolerances) to :class:`FwsWorker`, which pickles it to a process of
+its own (``python -m awp_ros.node.fws_worker``, a fresh interpreter with one BLAS thread, no
+fork of a process running DDS threads) and returns a handle; the pipeline asks the handle for
+the answer ``fws_lag_s`` of stamps later and waits there if the worker is late. The answer is
+the same as computed in the node (same function, same arguments, floats pickled exactly), so
+the reports depend on stamps only and equal the replay's.
+
+A worker that died or failed a job is reported through ``on_error`` and that job computed in
+the node instead (:meth:`FwsHandle.result`); later jobs are then computed in the node.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from concurrent.futures import Future
+import pickle
+import signal
+import subprocess
+import sys
+import threading
+
+from awp_ros.evaluation.evaluator import compute_fws
+from awp_ros.node.marker_worker import _read, _read_frame, _write
+
+__all__ = ['FwsHandle', 'FwsRunner', 'FwsWorker']
+
+#: Longest wait for one answer [s] before it is computed in the node.
+ANSWER_TIMEOUT_S = 10.0
+
+
+class FwsHandle:
+    """One submitted job: :meth:`result` returns its answer (from the worker, else computed)."""
+
+    def __init__(self, job: tuple, future: Future | None,
+                 on_error: Callable[[str], None]) -> None:
+        self._job, self._future, self._on_error = job, future, on_error
+        self._part = None
+
+    def cancel(self) -> None:
+        """Forget the job (its answer, when it comes, is dropped)."""
+        self._job = self._future = None
+
+    def result(self, timeout: float | None = None) -> tuple:
+        """Return ``compute_fws(*job)``: the worker's answer, or computed here if it failed."""
+        if self._part is not None:
+            return self._part
+        if self._future is not None:
+            try:
+                self._part = self._future.result(ANSWER_TIMEOUT_S if timeout is None
+                                                 else timeout)
+                return self._part
+            except Exception as exc:  # noqa: BLE001 -- any failure: compute it here
+                self._on_error(f'FWS worker: {type(exc).__name__}: {exc}; computed in the '
+                               'node')
+        self._part = compute_fws(*self._job)
+        return self._part
+
+
+class FwsWorker:
+    """
+    A process computing FWS jobs in order, and the thread reading its answers.
+
+    :param on_error: called with the reason of a failed job or a dead worker.
+    """
+
+    def __init__(self, on_error: Callable[[str], None]) -> None:
+        self._process = subprocess.Popen([sys.executable, '-m', 'awp_ros.node.fws_worker'],
+                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        self._on_error = on_error
+        self._lock = threading.Lock()
+        self._futures: deque[Future] = deque()
+        self._broken = False
+        self._reader = threading.Thread(target=self._read, name='awp_fws_reader', daemon=True)
+        self._reader.start()
+
+    @property
+    def alive(self) -> bool:
+        """Return whether the worker process runs and answers."""
+        return not self._broken and self._process.poll() is None
+
+    @property
+    def pid(self) -> int:
+        """Return the worker's process id."""
+        return self._process.pid
+
+    def submit(self, job: tuple) -> FwsHandle:
+        """Send ``job`` to the worker; the handle computes it here if the worker cannot."""
+        if not self.alive:
+            return FwsHandle(job, None, self._on_error)
+        future: Future = Future()
+        with self._lock:
+            try:
+                self._futures.append(future)
+                _write(self._process.stdin, job)
+            except (BrokenPipeError, OSError, ValueError, pickle.PicklingError) as exc:
+                self._futures.remove(future)
+                self._fail(f'FWS worker: sending a job failed ({type(exc).__name__}: {exc})')
+                return FwsHandle(job, None, self._on_error)
+        return FwsHandle(job, future, self._on_error)
+
+    def close(self, timeout_s: float = 2.0) -> None:
+        """Stop the worker (after the job it is on) and the reader."""
+        with self._lock:
+            self._broken = True
+            try:
+                self._process.stdin.close()
+            except OSError:
+                pass
+        try:
+            self._process.wait(timeout_s)
+        except subprocess.TimeoutExpired:
+            self._process.kill()
+            self._process.wait(timeout_s)
+        self._reader.join(timeout_s)
+
+    def _fail(self, reason: str) -> None:
+        """Mark the worker broken and fail the jobs it still owes (they compute here)."""
+        if not self._broken:
+            self._broken = True
+            self._on_error(reason)
+        while self._futures:
+            self._futures.popleft().set_exception(RuntimeError(reason))
+
+    def _read(self) -> None:
+        while True:
+            try:
+                ok, payload = _read(self._process.stdout)
+            except (EOFError, OSError, pickle.UnpicklingError):     # the worker is gone
+                with self._lock:
+                    if self._futures or not self._broken:
+                        self._fail(f'FWS worker process ended (exit code '
+                                   f'{self._process.poll()}); computing the FWS in the node')
+                return
+            with self._lock:
+                future = self._futures.popleft() if self._futures else None
+            if future is None:
+                continue
+            if ok:
+                future.set_result(payload)
+            else:
+                future.set_exception(RuntimeError(payload))
+
+
+class FwsRunner:
+    """
+    The node's :attr:`~awp_ros.ros.pipeline.Pipeline.fws_runner`: a worker started on first use.
+
+    A worker that died is not restarted (its jobs and later ones are computed in the node;
+    the reason went to ``on_error`` and ``/diagnostics``).
+
+    :param on_error: called with the reason of a failed job or a dead worker.
+    """
+
+    def __init__(self, on_error: Callable[[str], None]) -> None:
+        self._on_error = on_error
+        self.worker: FwsWorker | None = None
+
+    def start(self) -> None:
+        """Start the worker unless it runs."""
+        if self.worker is None:
+            self.worker = FwsWorker(self._on_error)
+
+    def submit(self, job: tuple) -> FwsHandle:
+        """Send ``job`` to the worker (started now if it is the first)."""
+        self.start()
+        return self.worker.submit(job)
+
+    def close(self) -> None:
+        """Stop the worker, if one was started."""
+        if self.worker is not None:
+            self.worker.close()
+
+
+def _warm_up() -> None:
+    """Compute a small FWS once, so that the first real job does not load the kernels."""
+    import numpy as np
+
+    from awp_ros.wrench.force_polytope import force_polytope
+    from awp_ros.wrench.friction_polytope import friction_polytope
+
+    limits = np.full(3, 150.0)
+    legs = [friction_polytope(force_polytope(np.diag([0.3, 0.3, 0.4]) + 0.05 * k,
+                                             np.array([0.0, 0.0, -20.0]), -limits, limits),
+                              np.array([0.0, 0.0, 1.0]), 0.7) for k in range(4)]
+    feet = np.array([[0.35, 0.3, -0.55], [0.35, -0.3, -0.55], [-0.35, 0.3, -0.55],
+                     [-0.35, -0.3, -0.55]])
+    for n in (4, 3, 2):
+        compute_fws(feet[:n], legs[:n], np.array([0.0, 0.0, 800.0, 0.0, 0.0, 0.0]), 1e-6,
+                    1e-6)
+
+
+def main() -> int:
+    """Worker process: answer each job with ``(True, compute_fws(*job))`` until stdin ends."""
+    from awp_ros.runtime import tune_process
+    signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the node's; it closes us
+    tune_process()      # one BLAS thread: idle OpenBLAS threads spin on the node's cores
+    try:
+        _warm_up()
+    except Exception:  # noqa: BLE001, S110 -- a warm-up failure shows in the first real job
+        pass
+    stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
+    while True:
+        try:
+            frame = _read_frame(stdin)
+        except EOFError:
+            return 0
+        try:
+            out = (True, compute_fws(*pickle.loads(frame)))
+        except Exception as exc:  # noqa: BLE001 -- reported to the node, the worker goes on
+            out = (False, f'{type(exc).__name__}: {exc}')
+        try:
+            _write(stdout, out)
+        except (BrokenPipeError, OSError):
+            return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,139 @@
+"""
+``fws_lag_s``: the FWS off the joint-state loop, in a real worker process.
+
+Checked over the default bag against the FWS computed in the loop (``fws_lag_s: 0``): a
+lagged report carries exactly the in-loop FWS of the latest due stamp at least ``fws_lag_s``
+earlier within its stance, or none (then ``feasible`` is the FWP's verdict); the worker's
+answers equal those computed in the process, also after the worker was killed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+import math
+import os
+import signal
+
+from awp_ros_msgs.msg import ContactState
+import numpy as np
+import pytest
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import JointState
+
+from awp_ros.bags.reader import read_bag
+from awp_ros.node.fws_worker import FwsRunner
+from awp_ros.robot.config import load_parameters
+from awp_ros.ros.conversions import stamp_to_ns
+from awp_ros.ros.pipeline import Pipeline
+
+LAG_S = 0.02
+FWS_FIELDS = ('fws_margin', 'fws_margin_in_hull', 'fws_normal', 'fws_dimension',
+              'fws_affine_residual', 'fws_feasible', 'fws_directional_plus',
+              'fws_directional_minus')
+
+
+@pytest.fixture(scope='module')
+def bag_msgs(repo):
+    types = {'/joint_states': JointState, '/contacts': ContactState}
+    return [(m.topic, deserialize_message(m.data, types[m.topic]))
+            for m in read_bag(str(repo / 'config' / 'hyq_gait.mcap'), topics=list(types))]
+
+
+def _run(msgs, lag_s: float, runner=None, *, kill_after: int | None = None):
+    """Return the reports and the ``~/fws`` messages of the bag through a pipeline."""
+    params, base_dir = load_parameters('hyq')
+    pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
+    pipeline.set_params(replace(pipeline.params, fws_lag_s=lag_s))
+    if runner is not None:
+        pipeline.fws_runner = runner
+    reports, fws = [], []
+    for topic, msg in msgs:
+        if topic == '/contacts':
+            pipeline.on_contacts(msg)
+            continue
+        if kill_after is not None and len(reports) == kill_after:
+            os.kill(runner.worker.pid, signal.SIGKILL)
+        cycle = pipeline.on_joint_state(msg)
+        reports.append(cycle.report)
+        fws.append(cycle.fws())
+    return reports, fws
+
+
+def _same(u, v) -> bool:
+    """Field-wise equality of messages, NaN equal to NaN."""
+    if hasattr(u, 'get_fields_and_field_types'):
+        return all(_same(getattr(u, f), getattr(v, f)) for f in u.get_fields_and_field_types())
+    if isinstance(u, (str, bool, int)):
+        return u == v
+    if isinstance(u, float):
+        return u == v or (math.isnan(u) and math.isnan(v))
+    if isinstance(u, (list, tuple)) and u and hasattr(u[0], 'get_fields_and_field_types'):
+        return len(u) == len(v) and all(_same(a, b) for a, b in zip(u, v))
+    U, V = np.asarray(u), np.asarray(v)
+    if U.dtype.kind in 'fc':
+        return U.shape == V.shape and np.array_equal(U, V, equal_nan=True)
+    return list(u) == list(v)
+
+
+@pytest.fixture(scope='module')
+def in_loop(bag_msgs):
+    return _run(bag_msgs, 0.0)
+
+
+@pytest.fixture(scope='module')
+def lagged(bag_msgs):
+    return _run(bag_msgs, LAG_S)
+
+
+def test_a_lagged_report_carries_the_in_loop_fws_of_its_stamp_minus_the_lag(in_loop, lagged):
+    base, _ = in_loop
+    reports, fws_msgs = lagged
+    lag_ns = int(LAG_S * 1e9)
+    stamps = [stamp_to_ns(r.header.stamp) for r in base]
+    due = {s: r for s, r in zip(stamps, base) if stamp_to_ns(r.fws_stamp) == s}
+    assert len(due) > 100
+    stance_start, previous, without, with_fws = None, None, 0, 0
+    for s, r0, r in zip(stamps, base, reports):
+        if list(r0.stance_feet) != previous:
+            stance_start, previous = s, list(r0.stance_feet)
+        # Every field but the FWS's (and those derived from it) is the in-loop report's.
+        for name in ('awp_margin', 'fwp_margin', 'fwp_feasible', 'support_region_margin',
+                     'feasible_region_margin', 'status', 'stance_feet'):
+            assert _same(getattr(r, name), getattr(r0, name)), (s, name)
+        expected = [t for t in due if stance_start <= t <= s - lag_ns]
+        if not expected:
+            without += 1
+            assert math.isnan(r.fws_margin) and not r.fws_feasible, s
+            assert r.feasible == r0.fwp_feasible, s
+            continue
+        with_fws += 1
+        t = max(expected)
+        assert stamp_to_ns(r.fws_stamp) == t, (s, t)
+        for name in FWS_FIELDS:
+            assert _same(getattr(r, name), getattr(due[t], name)), (s, name)
+        assert r.feasible == (r0.fwp_feasible and due[t].fws_feasible), s
+    assert without > 50 and with_fws > 4000, (without, with_fws)
+    # Each FWS is published once, in the cycle it is released, stamped with its own stamp.
+    released = [stamp_to_ns(m.header.stamp) for m in fws_msgs if m is not None]
+    assert released == sorted(released) and len(released) == len(set(released))
+    assert set(released) <= set(due)
+
+
+def test_the_worker_process_answers_as_the_node_would_also_after_it_is_killed(
+        bag_msgs, lagged):
+    reports, fws_msgs = lagged
+    errors: list[str] = []
+    runner = FwsRunner(errors.append)
+    try:
+        runner.start()
+        got, got_fws = _run(bag_msgs, LAG_S, runner, kill_after=3000)
+    finally:
+        runner.close()
+    assert len(got) == len(reports)
+    for a, b in zip(got, reports):
+        a.compute_time = b.compute_time = 0.0
+        assert _same(a, b), a.header.stamp
+    assert [m is None for m in got_fws] == [m is None for m in fws_msgs]
+    assert all(_same(a, b) for a, b in zip(got_fws, fws_msgs) if a is not None)
+    assert errors and 'FWS worker process ended' in errors[0], errors
+    assert not runner.worker.alive
