@@ -50,7 +50,7 @@ import time
 
 import numpy as np
 
-from awp_ros.errors import ConfigError, GeometryError, InputError
+from awp_ros.errors import AwpError, ConfigError, GeometryError, InputError
 from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
 from awp_ros.geometry import kernels
 from awp_ros.geometry.margin import directional_margins, polytope_margin
@@ -67,7 +67,7 @@ from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
 from awp_ros.wrench.friction_polytope import friction_rows, FrictionPolytopes, vertex_inside
 from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope, feasible_wrench_polytope
 
-__all__ = ['compute_fws', 'FeasibilityEvaluator', 'STAGES']
+__all__ = ['compute_fws', 'FeasibilityEvaluator', 'STAGES', 'warm_up']
 
 #: The per-cycle stages of :meth:`FeasibilityEvaluator.evaluate`, in order.
 STAGES = ('validate', 'model', 'force_polytopes', 'friction_polytopes', 'awp', 'cwc_fwp',
@@ -476,6 +476,34 @@ def compute_fws(positions: np.ndarray, frictions: Sequence[Polytope], wrench: np
     margin = polytope_margin(S, wrench, feasibility_tol=feasibility_tol, hull_tol=hull_tol)
     t3 = clock()
     return S, margin, plus, minus, (1e3 * (t1 - t0), 1e3 * (t2 - t1), 1e3 * (t3 - t2))
+
+
+def warm_up(config: RobotConfig | str) -> float:
+    """
+    Evaluate the standing posture once for every number of stance feet, FWS included.
+
+    The compiled kernels load from their on-disk cache at their first call in a process
+    (tens of ms each: a 500 Hz soak's first report took 48 ms, its first two-leg one 24 ms);
+    a node calls this before its first joint state so that no report pays for it. A
+    throwaway evaluator does the work: the caller's evaluators and their caches are not
+    touched. The posture is the config's ``standing_posture``, else every joint at 0 rad.
+    Failures (e.g. a posture where every leg is singular) are ignored: the stream then
+    only loads the kernels it meets later.
+
+    :return: the wall time it took [s].
+    """
+    t0 = time.perf_counter()
+    evaluator = FeasibilityEvaluator(config)
+    model = evaluator.model
+    q = model.standing_q if model.standing_q is not None else np.zeros(len(model.joint_names))
+    joints = dict(zip(model.joint_names, np.asarray(q, dtype=float).tolist()))
+    feet = list(evaluator.feet)
+    for n in range(len(feet), -1, -1):
+        try:
+            evaluator.evaluate(RobotState(joint_positions=joints, stance=feet[:n]))
+        except (AwpError, ValueError, np.linalg.LinAlgError):
+            pass
+    return time.perf_counter() - t0
 
 
 def _origin_set() -> Polytope:

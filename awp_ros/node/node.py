@@ -80,6 +80,7 @@ from sensor_msgs.msg import Imu, JointState
 from visualization_msgs.msg import MarkerArray
 
 from awp_ros.errors import AwpError
+from awp_ros.evaluation.evaluator import warm_up
 from awp_ros.node.diagnostics import NodeDiagnostics
 from awp_ros.node.evaluate_service import EvaluateService
 from awp_ros.node.fws_worker import FwsRunner
@@ -124,6 +125,9 @@ class AwpNode(Node):
                                          input_buffer=self.parameters.value('qos_depth'))
                 self.pipeline.fws_runner = self.fws_runner
                 self.parameters.declare_torque_limits(self.pipeline.evaluator.model)
+                warm_s = warm_up(self.pipeline.config)
+                self.get_logger().info(f'kernels loaded (the standing posture evaluated with '
+                                       f'every stance size) in {warm_s:.2f} s')
             except (AwpError, ValueError) as exc:
                 self.model_error = f'no robot model: {exc}'
         if self.model_error:

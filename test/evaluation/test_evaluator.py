@@ -847,3 +847,17 @@ def test_two_joint_legs_are_planar_by_design_not_singular():
     # A stretched knee is singular within the leg's own rank, and flagged.
     res = ev.evaluate(RobotState(joint_positions=dict(q, FL_KFE=0.0)))
     assert res.legs['FL_FOOT'].singular and "leg 'FL_FOOT' is singular" in res.warnings[0]
+
+
+@pytest.mark.parametrize('posture', ['standing', 'none'])
+def test_warm_up_evaluates_every_stance_size_and_leaves_other_evaluators_alone(posture):
+    from awp_ros.evaluation.evaluator import warm_up
+    config = load_config('hyq')
+    if posture == 'none':           # no standing posture: every joint at 0 rad (legs straight)
+        config = replace(config, standing_posture={})
+    ev = FeasibilityEvaluator('hyq')
+    state = ev.standing_state(stance=list(ev.feet)[:3])
+    before = ev.evaluate(state)
+    assert warm_up(config) > 0.0
+    after = ev.evaluate(state)
+    assert after.fws.margin == before.fws.margin and after.fwp.margin == before.fwp.margin
