@@ -28,7 +28,7 @@ import sys
 import threading
 
 from awp_ros.evaluation.evaluator import compute_fws
-from awp_ros.node.marker_worker import _read, _read_frame, _write
+from awp_ros.node.marker_worker import _read, _write, serve
 
 __all__ = ['FwsHandle', 'FwsRunner', 'FwsWorker']
 
@@ -206,20 +206,7 @@ def main() -> int:
         _warm_up()
     except Exception:  # noqa: BLE001, S110 -- a warm-up failure shows in the first real job
         pass
-    stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
-    while True:
-        try:
-            frame = _read_frame(stdin)
-        except EOFError:
-            return 0
-        try:
-            out = (True, compute_fws(*pickle.loads(frame)))
-        except Exception as exc:  # noqa: BLE001 -- reported to the node, the worker goes on
-            out = (False, f'{type(exc).__name__}: {exc}')
-        try:
-            _write(stdout, out)
-        except (BrokenPipeError, OSError):
-            return 0
+    return serve(lambda job: compute_fws(*job))
 
 
 if __name__ == '__main__':

@@ -29,7 +29,7 @@ import sys
 import threading
 from typing import BinaryIO
 
-__all__ = ['MarkerJob', 'MarkerWorker']
+__all__ = ['MarkerJob', 'MarkerWorker', 'serve']
 
 #: ``(function, args, kwargs)``: ``function(*args, **kwargs)`` returns the MarkerArray.
 MarkerJob = tuple
@@ -146,10 +146,14 @@ def _read_frame(stream: BinaryIO) -> bytes:
     return data
 
 
-def main() -> int:
-    """Worker process: build and serialize each job's MarkerArray until stdin ends."""
-    from rclpy.serialization import serialize_message
-    signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the node's; it closes us
+def serve(answer: Callable[[object], object], prefix: str = '') -> int:
+    """
+    Worker loop: answer each job read from stdin until stdin ends; return the exit code.
+
+    Each job is a length-prefixed pickle; its answer, written to stdout the same way, is
+    ``(True, answer(job))`` or ``(False, prefix + reason)`` when ``answer`` raised (the worker
+    goes on).
+    """
     stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
     while True:
         try:
@@ -157,14 +161,20 @@ def main() -> int:
         except EOFError:
             return 0
         try:
-            function, args, kwargs = pickle.loads(frame)
-            out = (True, serialize_message(function(*args, **kwargs)))
+            out = (True, answer(pickle.loads(frame)))
         except Exception as exc:  # noqa: BLE001 -- reported to the node, the worker goes on
-            out = (False, f'markers: {type(exc).__name__}: {exc}')
+            out = (False, f'{prefix}{type(exc).__name__}: {exc}')
         try:
             _write(stdout, out)
         except (BrokenPipeError, OSError):
             return 0
+
+
+def main() -> int:
+    """Worker process: build and serialize each job's MarkerArray until stdin ends."""
+    from rclpy.serialization import serialize_message
+    signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the node's; it closes us
+    return serve(lambda job: serialize_message(job[0](*job[1], **job[2])), 'markers: ')
 
 
 if __name__ == '__main__':
