@@ -13,7 +13,9 @@ the same as computed in the node (same function, same arguments, floats pickled 
 the reports depend on stamps only and equal the replay's.
 
 A worker that died or failed a job is reported through ``on_error`` and that job computed in
-the node instead (:meth:`FwsHandle.result`); later jobs are then computed in the node.
+the node instead (:meth:`FwsHandle.result`); later jobs are then computed in the node. A worker
+still starting (~1 s: imports and its warm-up, before its first answer) is not waited for: a
+job due then is computed in the node, with the same numbers.
 """
 
 from __future__ import annotations
@@ -40,8 +42,10 @@ class FwsHandle:
     """One submitted job: :meth:`result` returns its answer (from the worker, else computed)."""
 
     def __init__(self, job: tuple, future: Future | None,
-                 on_error: Callable[[str], None]) -> None:
+                 on_error: Callable[[str], None],
+                 ready: Callable[[], bool] = lambda: True) -> None:
         self._job, self._future, self._on_error = job, future, on_error
+        self._ready = ready
         self._part = None
 
     def cancel(self) -> None:
@@ -49,10 +53,16 @@ class FwsHandle:
         self._job = self._future = None
 
     def result(self, timeout: float | None = None) -> tuple:
-        """Return ``compute_fws(*job)``: the worker's answer, or computed here if it failed."""
+        """
+        Return ``compute_fws(*job)``: the worker's answer, or computed here.
+
+        Computed here when the worker failed, and when it is still starting (it has answered
+        no job yet: ~1 s after it was started) and this answer is not in: the same numbers,
+        sooner than the worker's start-up.
+        """
         if self._part is not None:
             return self._part
-        if self._future is not None:
+        if self._future is not None and (self._future.done() or self._ready()):
             try:
                 self._part = self._future.result(ANSWER_TIMEOUT_S if timeout is None
                                                  else timeout)
@@ -78,6 +88,7 @@ class FwsWorker:
         self._lock = threading.Lock()
         self._futures: deque[Future] = deque()
         self._broken = False
+        self._answered = 0
         self._reader = threading.Thread(target=self._read, name='awp_fws_reader', daemon=True)
         self._reader.start()
 
@@ -104,7 +115,7 @@ class FwsWorker:
                 self._futures.remove(future)
                 self._fail(f'FWS worker: sending a job failed ({type(exc).__name__}: {exc})')
                 return FwsHandle(job, None, self._on_error)
-        return FwsHandle(job, future, self._on_error)
+        return FwsHandle(job, future, self._on_error, lambda: self._answered > 0)
 
     def close(self, timeout_s: float = 2.0) -> None:
         """Stop the worker (after the job it is on) and the reader."""
@@ -141,6 +152,7 @@ class FwsWorker:
                 return
             with self._lock:
                 future = self._futures.popleft() if self._futures else None
+            self._answered += 1
             if future is None:
                 continue
             if ok:

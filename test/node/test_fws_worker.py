@@ -137,3 +137,28 @@ def test_the_worker_process_answers_as_the_node_would_also_after_it_is_killed(
     assert all(_same(a, b) for a, b in zip(got_fws, fws_msgs) if a is not None)
     assert errors and 'FWS worker process ended' in errors[0], errors
     assert not runner.worker.alive
+
+
+def test_a_worker_still_starting_is_not_waited_for_and_gives_the_same_numbers():
+    from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator
+    ev = FeasibilityEvaluator('hyq')
+    jobs = [ev.fws_job(ev.evaluate(ev.standing_state(stance=list(ev.feet)[:n]), fws=False))
+            for n in (4, 3, 2)]
+    errors: list[str] = []
+    runner = FwsRunner(errors.append)
+    try:
+        early = [runner.submit(job) for job in jobs]      # the worker is still importing
+        parts = [h.result() for h in early]                # computed here, not waited for
+        late = [runner.submit(job) for job in jobs]
+        late[-1]._future.result(60.0)                      # the worker has answered now
+        for job, a, h in zip(jobs, parts, late):
+            b, ref = h.result(), compute_fws(*job)
+            for x in (a, b):
+                assert np.array_equal(x[0].A, ref[0].A) and np.array_equal(x[0].b, ref[0].b)
+                assert x[1].margin == ref[1].margin and x[1].feasible == ref[1].feasible
+                assert np.array_equal(x[1].normal, ref[1].normal)
+                assert all(np.array_equal(u, v, equal_nan=True)
+                           for u, v in zip(x[2:4], ref[2:4]))
+        assert runner.worker.alive and not errors
+    finally:
+        runner.close()
