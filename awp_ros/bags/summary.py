@@ -38,7 +38,7 @@ class ReplaySummary:
     p5, median, mean, max, n} [m] over the valid reports' finite margins, and ``empty``:
     how many were NaN (an empty region, or none computed). Every report's region margins
     are its own cycle's (the feasible region by projection, not the FWS's), so all valid
-    reports count, unlike the FWS margin (only where ``fws_stamp`` = stamp).
+    reports count, unlike the FWS margin (each FWS once).
     """
 
     reports: int = 0
@@ -105,13 +105,14 @@ def summarize_reports(reports: Iterable) -> ReplaySummary:
     """
     Count valid / invalid / infeasible reports and compute margin statistics.
 
-    :param reports: ``FeasibilityReport`` messages (rclpy or rosbags objects). FWS margins
-        are taken only from reports whose ``fws_stamp`` equals their stamp (computed for
-        that cycle, not carried over).
+    :param reports: ``FeasibilityReport`` messages (rclpy or rosbags objects), in order. Each
+        FWS margin is taken once, from the first report carrying it (a new ``fws_stamp``:
+        the cycle it was computed for, or with ``fws_lag_s`` the one it was released in).
     """
     s = ReplaySummary()
     values: dict[str, list] = {'awp_margin': [], 'fwp_margin': [], 'fws_margin': []}
     regions: dict[str, list] = {name: [] for name in _REGIONS}
+    last_fws = None
     for r in reports:
         s.reports += 1
         name = STATUS_NAMES.get(int(r.status), f'status_{int(r.status)}')
@@ -127,9 +128,10 @@ def summarize_reports(reports: Iterable) -> ReplaySummary:
         regions['support_region'].append(getattr(r, 'support_region_margin', math.nan))
         regions['fwp_region'].append(getattr(r, 'fwp_region_margin', math.nan))
         regions['feasible_region'].append(getattr(r, 'feasible_region_margin', math.nan))
-        if (r.fws_stamp.sec, r.fws_stamp.nanosec) == (r.header.stamp.sec,
-                                                      r.header.stamp.nanosec):
+        fws_stamp = (r.fws_stamp.sec, r.fws_stamp.nanosec)
+        if fws_stamp != last_fws and not math.isnan(r.fws_margin):
             values['fws_margin'].append(r.fws_margin)
+            last_fws = fws_stamp
     for name, vals in values.items():
         x = np.asarray(vals, dtype=float)
         x = x[np.isfinite(x)]

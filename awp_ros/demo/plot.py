@@ -81,7 +81,14 @@ class MarginSeries:
             x[~valid] = np.nan
             return x
 
-        fws = np.where(fws_stamp == stamp, values('fws_margin'), np.nan)
+        # Each FWS once, at the first valid report carrying it (the cycle it was computed
+        # for; with fws_lag_s, the one it was released in).
+        first_carrier = np.zeros(len(reports), dtype=bool)
+        last = None
+        for k in np.flatnonzero(valid):
+            if fws_stamp[k] != last:
+                first_carrier[k], last = True, fws_stamp[k]
+        fws = np.where(first_carrier, values('fws_margin'), np.nan)
         fwp_in = np.array([bool(r.fwp_feasible) for r in reports], dtype=bool)
         feasible = np.array([bool(r.feasible) for r in reports], dtype=bool) & valid
         qs_fwp = qs_feasible = None

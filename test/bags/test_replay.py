@@ -159,7 +159,8 @@ def test_summarize_counts_invalid_and_infeasible_reports():
     def rep(status, feasible, fwp, margin, fws_now):
         stamp = SimpleNamespace(sec=1, nanosec=2)
         return SimpleNamespace(status=status, feasible=feasible, fwp_feasible=fwp,
-                               awp_margin=margin, fwp_margin=margin, fws_margin=margin,
+                               awp_margin=margin, fwp_margin=margin,
+                               fws_margin=margin if fws_now else math.nan,
                                header=SimpleNamespace(stamp=stamp),
                                fws_stamp=stamp if fws_now else SimpleNamespace(sec=0,
                                                                                nanosec=0))

@@ -14,11 +14,11 @@ S = FeasibilityReport
 
 
 def report(i: int, support: float, fwp: float, feasible: float, *, fresh: bool,
-           status: int = S.STATUS_OK) -> FeasibilityReport:
+           status: int = S.STATUS_OK, fws_at: int = 0) -> FeasibilityReport:
+    # fresh: the FWS was computed for this report; else it carries the one of stamp fws_at.
     r = FeasibilityReport(status=status)
     r.header.stamp.sec = i
-    if fresh:
-        r.fws_stamp.sec = i
+    r.fws_stamp.sec = i if fresh else fws_at
     r.support_region_margin, r.fwp_region_margin = support, fwp
     r.feasible_region_margin = feasible
     return r
@@ -31,8 +31,8 @@ def test_region_margins_exclude_nan_count_empty_and_take_every_cycle():
     fwp = support - 0.01
     feasible = support - 0.02
     fresh = np.arange(40) % 4 == 0
-    reports = [report(i, support[i], fwp[i], feasible[i], fresh=bool(fresh[i]))
-               for i in range(40)]
+    reports = [report(i, support[i], fwp[i], feasible[i], fresh=bool(fresh[i]),
+                      fws_at=i - i % 4) for i in range(40)]
     reports.append(report(99, 5.0, 5.0, 5.0, fresh=True, status=S.STATUS_INVALID_INPUT))
     s = summarize_reports(reports)
     assert s.valid == 40 and s.invalid == 1
@@ -46,7 +46,7 @@ def test_region_margins_exclude_nan_count_empty_and_take_every_cycle():
         assert st['p5'] == np.percentile(x, 5)
     assert s.region_margins['support_region']['empty'] == 2
     assert s.region_margins['feasible_region']['n'] == 38     # every cycle's, not only FWS's
-    assert s.margins['fws_margin']['n'] == 10     # the FWS margin: the FWS cycles' only
+    assert s.margins['fws_margin']['n'] == 10     # the FWS margin: each FWS once
     text = s.to_text()
     assert 'region [m]' in text and 'feasible_region' in text
     json.dumps(s.to_dict(), allow_nan=False)
@@ -60,3 +60,17 @@ def test_regions_all_empty_give_null_statistics():
     doc = json.loads(json.dumps(s.to_dict(), allow_nan=False))
     assert doc['region_margins']['feasible_region']['min'] is None
     assert 'feasible_region' in s.to_text()
+
+
+def test_each_fws_margin_counts_once_also_when_released_lagged():
+    # fws_lag_s: FWS of stamps 0, 10, 20 released at 3, 13, 23 (carried until the next);
+    # none before 3 (NaN); the invalid report in between does not count.
+    reports = []
+    for i in range(30):
+        r = report(i, 0.1, 0.1, 0.1, fresh=False, fws_at=(i - 3) // 10 * 10)
+        r.fws_margin = math.nan if i < 3 else 100.0 + (i - 3) // 10
+        reports.append(r)
+    reports[15].status = S.STATUS_INVALID_INPUT
+    s = summarize_reports(reports)
+    st = s.margins['fws_margin']
+    assert st['n'] == 3 and st['min'] == 100.0 and st['max'] == 102.0

@@ -34,15 +34,22 @@ def _colour_fraction(image: np.ndarray, hex_colour: str, tol: float = 0.02) -> f
     return float((np.abs(image[..., :3] - rgb).max(axis=-1) < tol).mean())
 
 
-def _report(t_ms: int, stance, fwp: float, *, residual=0.0, status=0, fws_now=True):
-    stamp = SimpleNamespace(sec=100 + t_ms // 1000, nanosec=(t_ms % 1000) * 10**6)
+def _stamp(t_ms: int) -> SimpleNamespace:
+    return SimpleNamespace(sec=100 + t_ms // 1000, nanosec=(t_ms % 1000) * 10**6)
+
+
+def _report(t_ms: int, stance, fwp: float, *, residual=0.0, status=0, fws_now=True,
+            fws_at_ms: int | None = None):
+    # fws_now: the FWS computed for this report; else the one of fws_at_ms (None: none).
+    stamp = _stamp(t_ms)
     return SimpleNamespace(
         header=SimpleNamespace(stamp=stamp), stance_feet=list(stance), status=status,
         status_message='' if status <= 1 else 'no contacts message received yet',
         awp_margin=3.0 * fwp, fwp_margin=fwp, fws_margin=0.9 * fwp,
         fwp_affine_residual=residual, fwp_feasible=residual == 0.0 and fwp >= 0,
         feasible=residual == 0.0 and fwp >= 0,
-        fws_stamp=stamp if fws_now else SimpleNamespace(sec=0, nanosec=0))
+        fws_stamp=stamp if fws_now else SimpleNamespace(sec=0, nanosec=0) if fws_at_ms is None
+        else _stamp(fws_at_ms))
 
 
 def _ns(t_ms: int) -> int:
@@ -143,7 +150,8 @@ def test_plot_shades_stance_phases_and_draws_the_margins(tmp_path):
     import matplotlib.image
 
     reports = [_report(2 * i, FEET if (i // 100) % 2 == 0 else FEET[1:], 150.0 - 100 *
-                       ((i // 100) % 2), fws_now=i % 50 == 0) for i in range(400)]
+                       ((i // 100) % 2), fws_now=i % 50 == 0, fws_at_ms=2 * (i - i % 50))
+               for i in range(400)]
     reports += [_report(800 + 2 * i, ['lf_foot', 'rh_foot'], 180.0, residual=20.0)
                 for i in range(100)]
     series = MarginSeries.from_reports(reports, FEET)
