@@ -83,11 +83,9 @@ class MarginSeries:
 
         # Each FWS once, at the first valid report carrying it (the cycle it was computed
         # for; with fws_lag_s, the one it was released in).
+        k = np.flatnonzero(valid)
         first_carrier = np.zeros(len(reports), dtype=bool)
-        last = None
-        for k in np.flatnonzero(valid):
-            if fws_stamp[k] != last:
-                first_carrier[k], last = True, fws_stamp[k]
+        first_carrier[k] = np.r_[True, fws_stamp[k][1:] != fws_stamp[k][:-1]][:k.size]
         fws = np.where(first_carrier, values('fws_margin'), np.nan)
         fwp_in = np.array([bool(r.fwp_feasible) for r in reports], dtype=bool)
         feasible = np.array([bool(r.feasible) for r in reports], dtype=bool) & valid

@@ -1,8 +1,9 @@
 """
 Compute the node's FWS in a worker process, off the joint-state loop (``fws_lag_s`` > 0).
 
-The FWS costs 8-25 ms (its H-rep, directional and Euclidean margins): computed in the loop it
-stalls a 1 kHz stream by that much at every FWS. With ``fws_lag_s`` > 0 the pipeline
+The FWS costs ~9 ms here (its H-rep, directional and Euclidean margins; ``awp_bench``
+``fws_ms``), more on slower machines: computed in the loop it stalls the stream by that much at
+every FWS. With ``fws_lag_s`` > 0 the pipeline
 (:class:`awp_ros.ros.pipeline.Pipeline`) hands each FWS job (the arguments of
 :func:`awp_ros.evaluation.evaluator.compute_fws`: feet [m], friction-bounded force polytopes
 [N], the wrench [N, N.m], tolerances) to :class:`FwsWorker`, which pickles it to a process of
@@ -29,7 +30,7 @@ import subprocess
 import sys
 import threading
 
-from awp_ros.evaluation.evaluator import compute_fws
+from awp_ros.evaluation.evaluator import compute_fws, warm_up
 from awp_ros.node.marker_worker import _read, _write, serve
 
 __all__ = ['FwsHandle', 'FwsRunner', 'FwsWorker']
@@ -191,33 +192,12 @@ class FwsRunner:
             self.worker.close()
 
 
-def _warm_up() -> None:
-    """Compute a small FWS once, so that the first real job does not load the kernels."""
-    import numpy as np
-
-    from awp_ros.wrench.force_polytope import force_polytope
-    from awp_ros.wrench.friction_polytope import friction_polytope
-
-    limits = np.full(3, 150.0)
-    legs = [friction_polytope(force_polytope(np.diag([0.3, 0.3, 0.4]) + 0.05 * k,
-                                             np.array([0.0, 0.0, -20.0]), -limits, limits),
-                              np.array([0.0, 0.0, 1.0]), 0.7) for k in range(4)]
-    feet = np.array([[0.35, 0.3, -0.55], [0.35, -0.3, -0.55], [-0.35, 0.3, -0.55],
-                     [-0.35, -0.3, -0.55]])
-    for n in (4, 3, 2):
-        compute_fws(feet[:n], legs[:n], np.array([0.0, 0.0, 800.0, 0.0, 0.0, 0.0]), 1e-6,
-                    1e-6)
-
-
 def main() -> int:
     """Worker process: answer each job with ``(True, compute_fws(*job))`` until stdin ends."""
     from awp_ros.runtime import tune_process
     signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the node's; it closes us
     tune_process()      # one BLAS thread: idle OpenBLAS threads spin on the node's cores
-    try:
-        _warm_up()
-    except Exception:  # noqa: BLE001, S110 -- a warm-up failure shows in the first real job
-        pass
+    warm_up('hyq')      # the kernels (robot-independent), loaded before the first job
     return serve(lambda job: compute_fws(*job))
 
 

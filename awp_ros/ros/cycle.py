@@ -29,10 +29,10 @@ class Cycle:
     :ivar report: the FeasibilityReport (always).
     :ivar result: the evaluation, or None when the message was not evaluated.
     :ivar fws_computed: whether the FWS was computed for this message.
+    :ivar markers_due: whether markers are published for this message.
 
     ``released_fws``: ``(stamp, result, reference point)`` of a lagged FWS released in this
     cycle (``fws_lag_s``): :meth:`fws` publishes it, stamped with its own joint state's stamp.
-    :ivar markers_due: whether markers are published for this message.
     """
 
     def __init__(self, header: Header, report: FeasibilityReport,

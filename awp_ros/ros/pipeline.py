@@ -472,11 +472,11 @@ class Pipeline:
             cycle (its ``~/fws`` message), or None.
         """
         p = self.params
-        if result.stance != self._submitted_stance:
+        changed = result.stance != self._submitted_stance
+        if changed:
             self._drop_pending_fws()
-            self._latest_fws = self._latest_fws_stamp = None
-            self._latest_fws_stance = None
-        if by_rate or result.stance != self._submitted_stance:
+            self._latest_fws = self._latest_fws_stamp = self._latest_fws_stance = None
+        if by_rate or changed:
             self._last_fws_ns = _advance(self._last_fws_ns, ns, p.fws_rate_hz) \
                 if by_rate else ns
             handle = self.fws_runner.submit(self.evaluator.fws_job(result))
