@@ -26,6 +26,8 @@ from __future__ import annotations
 
 from array import array
 from collections.abc import Collection, Sequence
+from copy import copy
+from functools import lru_cache
 import math
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport, LegPolytope, LegPolytopes
@@ -48,6 +50,7 @@ __all__ = [
     'STATUS_NAMES',
     'error_report',
     'leg_polytopes_msg',
+    'new_message',
     'polytope_from_msg',
     'polytope_to_msg',
     'region_polygon_msg',
@@ -205,6 +208,50 @@ def leg_polytopes_msg(header: Header, result: FeasibilityResult) -> LegPolytopes
     return msg
 
 
+# -- fresh messages ------------------------------------------------------------------------
+
+
+def new_message(cls: type):
+    """
+    Return a message of generated class ``cls`` with every field at its default.
+
+    Equal to ``cls()``, built from a default instance made once: immutable field values are
+    shared, arrays and lists copied, nested messages made the same way. The generated
+    ``__init__`` builds every nested message through its property setters (a
+    ``FeasibilityReport()`` costs ~27 us; this, ~5 us), once per joint state.
+    """
+    msg = cls.__new__(cls)
+    shared, copied, nested = _default_fields(cls)
+    for slot, value in shared:
+        setattr(msg, slot, value)
+    for slot, value in copied:
+        setattr(msg, slot, copy(value))
+    for slot, value in nested:
+        setattr(msg, slot, new_message(value))
+    return msg
+
+
+@lru_cache(maxsize=None)
+def _default_fields(cls: type) -> tuple[tuple, tuple, tuple]:
+    """
+    Return the slots of ``cls()`` as ``(shared, copied, nested)`` (see :func:`new_message`).
+
+    Each a tuple of ``(slot, value)``: immutable values (numbers, strings), arrays and lists
+    (copied per message), nested messages (the value is their class).
+    """
+    default = cls()
+    shared, copied, nested = [], [], []
+    for slot in cls.__slots__:
+        value = getattr(default, slot)
+        if hasattr(type(value), '_fields_and_field_types'):
+            nested.append((slot, type(value)))
+        elif isinstance(value, (np.ndarray, list, array)):
+            copied.append((slot, value))
+        else:
+            shared.append((slot, value))
+    return tuple(shared), tuple(copied), tuple(nested)
+
+
 # -- reports -------------------------------------------------------------------------------
 
 
@@ -247,7 +294,7 @@ def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float
     :param fws_pending: no FWS of this stance yet, it is being computed (``fws_lag_s``):
         ``feasible`` is then ``fwp_feasible`` (``fws`` must be None).
     """
-    msg = FeasibilityReport()
+    msg = new_message(FeasibilityReport)
     msg.header = header
     if status is None:
         status = FeasibilityReport.STATUS_WARNING if result.warnings \
@@ -347,7 +394,7 @@ def error_report(header: Header, status: int, reason: str, *, compute_time: floa
     :param status: ``STATUS_INVALID_INPUT``, ``STATUS_STALE_INPUT`` or ``STATUS_ERROR``.
     :param reason: human-readable reason (names the bad value).
     """
-    msg = FeasibilityReport()
+    msg = new_message(FeasibilityReport)
     msg.header = header
     msg.status = status
     msg.status_message = reason

@@ -20,9 +20,9 @@ from awp_ros.errors import InputError
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.evaluation.result import AXES
 from awp_ros.geometry.polytope import Polytope
-from awp_ros.ros.conversions import (error_report, leg_polytopes_msg, polytope_from_msg,
-                                     polytope_to_msg, report_msg, robot_state_from_msgs,
-                                     stamp_to_ns, wrench_polytope_msg)
+from awp_ros.ros.conversions import (error_report, leg_polytopes_msg, new_message,
+                                     polytope_from_msg, polytope_to_msg, report_msg,
+                                     robot_state_from_msgs, stamp_to_ns, wrench_polytope_msg)
 
 FEET = ('lf_foot', 'rf_foot', 'lh_foot', 'rh_foot')
 
@@ -41,6 +41,27 @@ def _box(lo, hi) -> Polytope:
     A = np.vstack([np.eye(3), -np.eye(3)])
     b = np.concatenate([hi, -np.asarray(lo, dtype=float)])
     return Polytope(3, V, A, b, np.zeros(3), np.eye(3))
+
+
+@pytest.mark.parametrize('cls', [FeasibilityReport, WrenchPolytope, LegPolytopes, PolytopeMsg,
+                                 ContactState, Imu, JointState])
+def test_new_message_equals_the_generated_constructor(cls):
+    fresh = new_message(cls)
+    assert type(fresh) is cls
+    assert fresh == cls()
+    assert serialize_message(fresh) == serialize_message(cls())
+    assert deserialize_message(serialize_message(fresh), cls) == cls()
+
+
+def test_new_messages_share_no_mutable_field():
+    a, b = new_message(FeasibilityReport), new_message(FeasibilityReport)
+    a.com.x = 1.0
+    a.header.stamp.sec = 7
+    a.awp_normal[0] = 2.0
+    a.stance_feet.append('lf_foot')
+    a.external_wrench.force.z = 3.0
+    assert b == FeasibilityReport() == new_message(FeasibilityReport)
+    assert a != b
 
 
 def test_box_polytope_roundtrips_through_serialised_bytes():
