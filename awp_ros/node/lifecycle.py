@@ -1,9 +1,10 @@
 """
 The rclpy session of the node's processes: ``awp_node`` and its ``~/evaluate`` worker.
 
-:func:`run_node` initialises rclpy, builds the node, spins it and, however that ends,
-destroys the node and shuts rclpy down, so that each process's ``main`` states only what it
-builds and how it spins.
+:func:`run_node` selects the Fast DDS profile the input queues need
+(:func:`~awp_ros.node.dds.use_deep_queues`), initialises rclpy, builds the node, spins it
+and, however that ends, destroys the node and shuts rclpy down, so that each process's
+``main`` states only what it builds and how it spins.
 """
 
 from __future__ import annotations
@@ -14,6 +15,8 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
+
+from awp_ros.node.dds import use_deep_queues
 
 __all__ = ['run_node']
 
@@ -27,6 +30,7 @@ def run_node(argv: list[str], build: Callable[[], Node], spin: Callable[[Node], 
     :param spin: spins it until shutdown; returns the exit code (0 after Ctrl-C or an
         external shutdown, including one that lands while the executor builds its wait set).
     """
+    use_deep_queues()           # before the participant exists (awp_ros.node.dds)
     rclpy.init(args=argv)
     node = None
     try:

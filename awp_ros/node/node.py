@@ -81,6 +81,7 @@ from visualization_msgs.msg import MarkerArray
 
 from awp_ros.errors import AwpError
 from awp_ros.evaluation.evaluator import warm_up
+from awp_ros.node.dds import queue_note
 from awp_ros.node.diagnostics import NodeDiagnostics
 from awp_ros.node.evaluate_service import EvaluateService
 from awp_ros.node.fws_worker import FwsRunner
@@ -190,6 +191,9 @@ class AwpNode(Node):
 
     def _create_interfaces(self, p: PipelineParams) -> None:
         depth = self.parameters.value('qos_depth')
+        warn, note = queue_note(depth)
+        if note:
+            (self.get_logger().warning if warn else self.get_logger().info)(note)
         rel = self.parameters.choice('qos_reliability', ('reliable', 'best_effort'))
         reliability = ReliabilityPolicy.RELIABLE if rel == 'reliable' \
             else ReliabilityPolicy.BEST_EFFORT

@@ -48,6 +48,7 @@ import time
 import numpy as np
 
 from awp_ros.errors import ProcessError
+from awp_ros.node.dds import use_deep_queues
 from awp_ros.node.launcher import ros_env, start_node, stop_node
 from awp_ros.soak.driver import drive, driver_command
 from awp_ros.soak.monitor import ProcessMonitor
@@ -229,6 +230,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--depth', type=int, default=100000, help=argparse.SUPPRESS)
     parser.add_argument('--topics', default='both', help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    use_deep_queues()   # the probe reads reports through a queue as deep as the node's
     if args.drive:
         summary = drive(rate_hz=args.rate, duration_s=args.duration, robot=args.robot,
                         namespace='' if args.namespace == '/' else args.namespace,

@@ -37,6 +37,8 @@ def test_colcon_builds_both_packages(repo, tmp_path, ros_env):
     assert generated, 'generated Python message module missing'
     assert list((ws / 'install/awp_ros/share/awp_ros/config').glob('*.yaml')) or \
         not list((repo / 'config').glob('*.yaml'))
+    # The node's Fast DDS profile (awp_ros.node.dds) is installed beside its module.
+    assert list((ws / 'install/awp_ros').rglob('awp_ros/node/fastdds_profile.xml'))
     # The generated module imports and round-trips with the workspace's own build.
     site = generated[0].parents[2]
     check = subprocess.run(
