@@ -23,7 +23,12 @@ at ``SCHED_IDLE`` (as before), its DDS threads starved while the node and the st
 cores busy, and the node's reports were late by ~300 ms (p50) for as long as a query ran,
 against +0.1 ms for the same CPU work at ``SCHED_IDLE`` in a process without DDS (measured
 with :mod:`awp_ros.soak.query_load` ``--alternate``); a starving thread that holds a lock
-the node's participant waits for is the likely mechanism (not identified further).
+the node's participant waits for is the likely mechanism (not identified further). And the
+worker shares the node's *session* (in a process group of its own): Linux's autogroup
+scheduling makes each session a task group with a fair share of the CPU against the others,
+whatever the policies of its threads, so a worker in a session of its own took a core from the
+node like a normal process (reports during a query +50-70 ms late at the median, against
++0.6-1.2 ms in the node's session; README, *Beside the live stream*).
 
 Semantics of a request (:func:`evaluate_request`), the live pipeline's for each state with
 these differences: every state stands alone (no stamps are compared, no history: the motion
@@ -102,6 +107,10 @@ _S = FeasibilityReport
 NICE = 10
 #: Times a worker that ended unexpectedly is restarted.
 MAX_RESTARTS = 3
+#: Popen arguments of the worker: its own process group in the node's session (Python 3.11+;
+#: before, its own session, which autogroup scheduling puts in a group of its own).
+_OWN_GROUP = {'process_group': 0} if sys.version_info >= (3, 11) else \
+    {'start_new_session': True}
 
 
 # -- the request ---------------------------------------------------------------------------
@@ -294,10 +303,14 @@ class EvaluateService:
     def _start(self) -> None:
         """Start a worker and the thread reading it (called with the lock held or at init)."""
         try:
-            # A session of its own: a Ctrl-C or a signal to the node's process group is the
-            # node's; the worker ends when the node closes its stdin (or exits).
+            # A process group of its own (a Ctrl-C or a signal to the node's group is the
+            # node's; the worker ends when the node closes its stdin or exits) in the node's
+            # session: not a session of its own, since Linux's autogroup scheduling
+            # (kernel.sched_autogroup_enabled) makes each session a task group that gets a
+            # fair share of the CPU against the node's whatever its tasks' policies:
+            # ``SCHED_IDLE`` only ranks threads inside a group (module docstring).
             self._process = subprocess.Popen(self._command, stdin=subprocess.PIPE,
-                                             stdout=subprocess.PIPE, start_new_session=True)
+                                             stdout=subprocess.PIPE, **_OWN_GROUP)
         except OSError as exc:
             self._process = None
             self._on_error(f'~/evaluate: could not start its worker: {exc}')

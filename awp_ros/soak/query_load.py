@@ -28,7 +28,10 @@ the node, without the caller's own work); ``--control S`` is the control experim
 each call the caller evaluates for ``S`` seconds at ``SCHED_IDLE`` (no call, no DDS), which shows
 what the same kind of CPU work costs the stream when the node has nothing to do with it;
 ``--alternate`` makes every other window such a control (the previous call's states, for as long
-as that call took), so that calls and controls share one run and its conditions.
+as that call took), so that calls and controls share one run and its conditions; ``--null`` adds,
+after each control, a *null* window of the same length in which nothing is done: its paired
+differences are the measurement's own noise floor (what a stretch differs from the one before it
+when nothing happens), against which the calls' and controls' differences are read.
 ``--variant thread`` runs, for comparison, a node that answers ``~/evaluate`` the other way:
 from a thread of the node process (a second executor, its own evaluator), not the worker
 process (:func:`thread_variant_main`).
@@ -52,7 +55,8 @@ from awp_ros.soak.driver import driver_command
 from awp_ros.soak.probe import Probe, wait_until
 from awp_ros.soak.result import percentiles
 
-__all__ = ['caller_main', 'main', 'query_request', 'run_query_load', 'thread_variant_main']
+__all__ = ['caller_main', 'main', 'query_request', 'run_query_load', 'table',
+           'thread_variant_main', 'window_kind']
 
 _THREAD_VARIANT = '--thread-variant-node'
 _CALLER = '--caller'
@@ -90,7 +94,7 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
                    namespace: str = '/query_load', env: dict[str, str] | None = None,
                    seed: int = 0, queries: bool = True,
                    command: list[str] | None = None, idle_caller: bool = False,
-                   control_s: float = 0.0, alternate: bool = False,
+                   control_s: float = 0.0, alternate: bool = False, null: bool = False,
                    params: dict | None = None) -> dict:
     """
     Run one measurement (module docstring) and return its figures.
@@ -114,9 +118,11 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
     :param alternate: every other window is the control (the caller at ``SCHED_IDLE``, the
         previous call's states for as long as that call took): calls and controls in the same
         run, ``paired_control_ms`` the controls' paired differences.
+    :param null: with ``alternate``, each control is followed by a null window (nothing done,
+        as long as the control): ``paired_null_ms``, the noise floor of the paired figures.
     :return: ``latency_baseline_ms``, ``latency_during_queries_ms`` (p50, p99, max),
         ``delay_attributable_ms`` (during minus baseline at p50, p99 and max; clipped at 0),
-        ``paired_difference_ms`` (per call: p50 and max of the latencies during it minus
+        ``paired_difference_ms`` (per call: p50, p99 and max of the latencies during it minus
         those of the equally long stretch before it, which is robust to slow drifts),
         ``queries`` (calls answered), ``query_s`` (their durations), ``reports``, ``sent``,
         ``missing``, ``query_statuses`` (status counts of the queries' reports).
@@ -163,7 +169,7 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
                      'period_s': period_s, 'quiet_s': quiet_s,
                      'until_s': duration_s - 2.0, 'seed': seed, 'domain': domain,
                      'idle': idle_caller, 'control_s': control_s,
-                     'alternate': alternate})],
+                     'alternate': alternate, 'null': null})],
                 env=env, stdout=subprocess.PIPE, text=True)
         out, _ = driver.communicate(timeout=duration_s + 180)
         if driver.returncode != 0:
@@ -182,6 +188,7 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
         os.unlink(stamps_file.name)
     windows = [tuple(w[:2]) for w in calls['windows'] if w[2] == 'call']
     controls = [tuple(w[:2]) for w in calls['windows'] if w[2] == 'control']
+    nulls = [tuple(w[:2]) for w in calls['windows'] if w[2] == 'null']
     statuses = {int(k): v for k, v in calls['statuses'].items()}
     n = min(count[0], n_max)
     got, latency = stamps[:n], (recv[:n] - stamps[:n]) * 1e-6
@@ -189,7 +196,7 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
     for t0, t1 in windows:
         during |= (got >= t0) & (got <= t1)
     busy_any = during.copy()
-    for t0, t1 in controls:
+    for t0, t1 in controls:     # (null windows stay in the baseline: nothing happens)
         busy_any |= (got >= t0) & (got <= t1)
     warm = got >= int(sent[0]) + int(quiet_s / 2 * 1e9)
     base = percentiles(latency[warm & ~busy_any])
@@ -205,6 +212,7 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
             if before.any() and inside.any():
                 a, b = latency[inside], latency[before]
                 out.append({'p50': float(np.median(a) - np.median(b)),
+                            'p99': float(np.percentile(a, 99) - np.percentile(b, 99)),
                             'max': float(a.max() - b.max())})
         return out
     names = {0: 'ok', 1: 'warning', 2: 'invalid_input', 3: 'stale_input', 4: 'error'}
@@ -219,7 +227,22 @@ def run_query_load(rate_hz: float = 500.0, duration_s: float = 30.0, *, states: 
             'latency_baseline_ms': base, 'latency_during_queries_ms': busy,
             'delay_attributable_ms': delay,
             'paired_difference_ms': pairs(windows),
-            'paired_control_ms': pairs(controls)}
+            'paired_control_ms': pairs(controls),
+            'paired_null_ms': pairs(nulls)}
+
+
+def window_kind(index: int, *, alternate: bool, null: bool, control: bool) -> str:
+    """
+    Return what the caller's window ``index`` (0, 1, ...) is: ``call``, ``control`` or ``null``.
+
+    With ``alternate`` the windows cycle through a call, a control (as long as that call) and,
+    with ``null``, a null window (as long again); otherwise every window is a control when the
+    caller runs controls (``control``), else a call.
+    """
+    if alternate:
+        cycle = ('call', 'control', 'null') if null else ('call', 'control')
+        return cycle[index % len(cycle)]
+    return 'control' if control else 'call'
 
 
 def caller_main(spec: dict) -> int:
@@ -228,8 +251,9 @@ def caller_main(spec: dict) -> int:
 
     ``spec``: ``service``, ``robot``, ``states``, ``period_s``, ``quiet_s`` (from now),
     ``until_s`` (no call starts later), ``seed``, ``domain``, ``idle``, ``control_s``,
-    ``alternate``. Prints one JSON object: ``windows`` ([start, end, kind]: wall-clock [ns]
-    of each window, ``call`` or ``control``) and ``statuses`` (of the reports).
+    ``alternate``, ``null``. Prints one JSON object: ``windows`` ([start, end, kind]:
+    wall-clock [ns] of each window, ``call``, ``control`` or ``null``) and ``statuses`` (of
+    the reports).
     """
     from awp_ros_msgs.srv import Evaluate
 
@@ -264,13 +288,16 @@ def caller_main(spec: dict) -> int:
                 time.sleep(left)
             if time.monotonic() - start > spec['until_s']:
                 break
-            # alternate: every other window is the control, as long as the call before it
-            is_control = control is not None and (not alternate or len(windows) % 2 == 1)
-            if is_control and alternate and last is not None:
+            kind = window_kind(len(windows), alternate=alternate, null=bool(spec.get('null')),
+                               control=control is not None)
+            is_control = kind == 'control'
+            if kind != 'call' and alternate and last is not None:
                 request = last
             last = request
             t0 = time.time_ns()
-            if is_control:                  # the same work, no call, no DDS
+            if kind == 'null':              # nothing at all: the noise floor
+                time.sleep((windows[-1][1] - windows[-1][0]) * 1e-9)
+            elif is_control:                # the same work, no call, no DDS
                 states = [RobotState(joint_positions=dict(zip(js.name, js.position)),
                                      stance=[f for f, c in zip(cs.names, cs.in_contact) if c])
                           for js, cs in zip(request.joint_states, request.contacts)]
@@ -286,7 +313,7 @@ def caller_main(spec: dict) -> int:
                 wait_until(future.done, 120.0, 'an ~/evaluate response', poll_s=0.002)
                 for report in future.result().reports:
                     statuses[report.status] = statuses.get(report.status, 0) + 1
-            windows.append((t0, time.time_ns(), 'control' if is_control else 'call'))
+            windows.append((t0, time.time_ns(), kind))
             next_call += max(spec['period_s'], (windows[-1][1] - t0) * 1e-9)
     finally:
         probe.close()
@@ -346,15 +373,17 @@ def table(result: dict) -> str:
             n = '' if count is None else str(result[count])
             lines.append(f'{label:<28}{n:>8}' + ''.join(f'{values[k]:>9.3f}'
                                                         for k in ('p50', 'p99', 'max')))
-    for key, label in (('paired_difference_ms', 'call'), ('paired_control_ms', 'control')):
+    for key, label in (('paired_difference_ms', 'call'), ('paired_control_ms', 'control'),
+                       ('paired_null_ms', 'null window')):
         paired = result.get(key) or []
         if paired:
-            p50 = sorted(p['p50'] for p in paired)
-            mx = sorted(p['max'] for p in paired)
-            lines.append(f'paired (each {label} vs the stretch before it): p50 difference '
-                         f'median {p50[len(p50) // 2]:.3f} ms (range {p50[0]:.3f} .. '
-                         f'{p50[-1]:.3f}), max difference median {mx[len(mx) // 2]:.3f} ms '
-                         f'(range {mx[0]:.3f} .. {mx[-1]:.3f})')
+            parts = []
+            for stat in ('p50', 'p99', 'max'):
+                v = sorted(p[stat] for p in paired)
+                parts.append(f'{stat} difference median {v[len(v) // 2]:.3f} ms (range '
+                             f'{v[0]:.3f} .. {v[-1]:.3f})')
+            lines.append(f'paired (each {label} vs the stretch before it, '
+                         f'{len(paired)} windows): ' + ', '.join(parts))
     return '\n'.join(lines)
 
 
@@ -385,6 +414,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--alternate', action='store_true',
                         help='every other window is the control (same states, as long as the '
                         'call before it): calls and controls in one run')
+    parser.add_argument('--null', action='store_true',
+                        help='with --alternate: after each control a window in which nothing '
+                        'is done (the noise floor of the paired differences)')
     parser.add_argument('--param', action='append', default=[], metavar='NAME:=VALUE',
                         help='more node parameters, e.g. fws_lag_s:=0.03')
     parser.add_argument('--variant', choices=('worker', 'thread'), default='worker',
@@ -398,10 +430,10 @@ def main(argv: list[str] | None = None) -> int:
                             namespace=args.namespace, seed=args.seed,
                             queries=not args.no_queries, command=command,
                             idle_caller=args.idle_caller, control_s=args.control,
-                            alternate=args.alternate,
+                            alternate=args.alternate, null=args.null,
                             params=dict(p.split(':=', 1) for p in args.param))
     result.update(params=args.param, variant=args.variant, idle_caller=args.idle_caller,
-                  control_s=args.control, alternate=args.alternate)
+                  control_s=args.control, alternate=args.alternate, null=args.null)
     print(table(result))
     print(json.dumps(result))
     return 0 if result['missing'] == 0 else 1
