@@ -9,9 +9,11 @@ The awp_node process: an rclpy shell over awp_ros.ros.pipeline.
 - :mod:`diagnostics`: counters and the /diagnostics DiagnosticArray.
 - :mod:`launcher`: start and stop awp_node as a process (tests, soak, demo).
 - :mod:`evaluate_service`: the ~/evaluate worker process (queries beside the live stream).
+- :mod:`evaluate_compute`: its child process evaluating the queries (no DDS).
+- :mod:`yield_gate`: how the node stops that child while it answers joint states.
 - :mod:`lifecycle`: rclpy init, spin and shutdown of both processes.
 - :mod:`dds`: the Fast DDS profile that lets the input queues hold ``qos_depth``.
 """
 
 __all__ = ['node', 'parameters', 'input_drain', 'marker_worker', 'fws_worker', 'diagnostics',
-           'launcher', 'evaluate_service', 'lifecycle', 'dds']
+           'launcher', 'evaluate_service', 'evaluate_compute', 'yield_gate', 'lifecycle', 'dds']

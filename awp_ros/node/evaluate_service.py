@@ -13,22 +13,21 @@ node ``_<node>_evaluate`` in the node's namespace) that advertises the node's re
 service name (``/awp_node/evaluate`` by default; remapped and namespaced like the node's
 ``~/evaluate``). The node process does nothing per query: it only sends the worker its
 robot config and pipeline parameters at startup and after every accepted parameter change
-(length-prefixed pickles over the worker's stdin). The worker evaluates in a thread of its
-own under the ``SCHED_IDLE`` policy (Linux; else ``nice`` +:data:`NICE`,
-:func:`lower_thread_priority`): it gets a core only when nothing else wants it, and a woken
-node thread preempts it at once, so that on a busy machine the live stream wins the cores (and
-the queries wait). Only that thread: the worker's DDS threads and the executor thread that
-receives the request and sends the response keep the normal policy. With the whole worker
-at ``SCHED_IDLE`` (as before), its DDS threads starved while the node and the stream kept the
-cores busy, and the node's reports were late by ~300 ms (p50) for as long as a query ran,
-against +0.1 ms for the same CPU work at ``SCHED_IDLE`` in a process without DDS (measured
-with :mod:`awp_ros.soak.query_load` ``--alternate``); a starving thread that holds a lock
-the node's participant waits for is the likely mechanism (not identified further). And the
-worker shares the node's *session* (in a process group of its own): Linux's autogroup
-scheduling makes each session a task group with a fair share of the CPU against the others,
-whatever the policies of its threads, so a worker in a session of its own took a core from the
-node like a normal process (reports during a query +50-70 ms late at the median, against
-+0.6-1.2 ms in the node's session; README, *Beside the live stream*).
+(length-prefixed pickles over the worker's stdin). The worker does not evaluate either: it
+hands each request, serialized, to its own child process, the query computation
+(:mod:`awp_ros.node.evaluate_compute`), which evaluates at the ``SCHED_IDLE`` policy (Linux;
+else ``nice`` +:data:`NICE`, :func:`lower_thread_priority`) and holds no DDS participant, so
+that the node can stop it while it answers joint states (``evaluate_yield``,
+:mod:`awp_ros.node.yield_gate`): a query then never competes with the stream for the cores and
+caches, it waits while the node is busy. The worker's own DDS threads and the executor thread
+that receives the request and sends the response keep the normal policy: with the whole
+worker at ``SCHED_IDLE`` (as before commit 5a65fdb) its DDS threads starved while the node and
+the stream kept the cores busy, and the node's reports were late by ~300 ms (p50) for as long
+as a query ran. The worker shares the node's *session* (in a process group of its own):
+Linux's autogroup scheduling makes each session a task group with a fair share of the CPU
+against the others, whatever the policies of its threads, so a worker in a session of its own
+took a core from the node like a normal process (reports during a query +50-70 ms late at the
+median, against +0.6-1.2 ms in the node's session; README, *Beside the live stream*).
 
 Semantics of a request (:func:`evaluate_request`), the live pipeline's for each state with
 these differences: every state stands alone (no stamps are compared, no history: the motion
@@ -69,7 +68,6 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
 import os
 import pickle
 import select
@@ -82,14 +80,16 @@ import time
 from awp_ros_msgs.msg import FeasibilityReport, WrenchPolytope
 from awp_ros_msgs.srv import Evaluate
 import numpy as np
+from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Header
 
-from awp_ros.errors import AwpError, ConfigError, InputError
+from awp_ros.errors import AwpError, ConfigError, InputError, ProcessError
 from awp_ros.estimation.motion import fill_motion, MotionEstimator
 from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.geometry.linalg import quaternion_matrix
 from awp_ros.geometry.polytope import Polytope
-from awp_ros.node.marker_worker import _LENGTH, _read, _write
+from awp_ros.node.evaluate_compute import Computation
+from awp_ros.node.marker_worker import _LENGTH, _read, _write, end_process
 from awp_ros.robot.config import RobotConfig
 from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.contact_source import EffortContacts
@@ -249,15 +249,18 @@ class EvaluateService:
     :param namespace: the node's namespace.
     :param on_error: called with the reason when the worker fails (any thread).
     :param on_info: called with a line to log when the worker serves (any thread).
+    :param gate: the path of the node's :class:`~awp_ros.node.yield_gate.YieldGate` page by
+        which it pauses the query computation while it handles a joint state ('' = none).
     """
 
     def __init__(self, service_name: str, node_name: str, namespace: str,
                  on_error: Callable[[str], None],
-                 on_info: Callable[[str], None] = lambda line: None) -> None:
+                 on_info: Callable[[str], None] = lambda line: None, *,
+                 gate: str = '') -> None:
         self.service_name = service_name
         self._command = [sys.executable, '-m', 'awp_ros.node.evaluate_service', '--service',
                          service_name, '--node-name', f'_{node_name}_evaluate', '--namespace',
-                         namespace or '/']
+                         namespace or '/', '--gate', gate]
         self._on_error, self._on_info = on_error, on_info
         self._lock = threading.Lock()
         self._closed = False
@@ -288,17 +291,8 @@ class EvaluateService:
         with self._lock:
             self._closed = True
             proc = self._process
-        if proc is None:
-            return
-        try:
-            proc.stdin.close()
-        except OSError:
-            pass
-        try:
-            proc.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout_s)
+        if proc is not None:
+            end_process(proc, timeout_s)
 
     def _start(self) -> None:
         """Start a worker and the thread reading it (called with the lock held or at init)."""
@@ -355,39 +349,45 @@ class EvaluateService:
 
 class _Worker:
     """
-    The worker's state: the evaluator of the latest config, swapped whole.
+    The worker's state: the computation process and the latest config sent to it.
 
     An update the node wrote before a query arrives is applied before that query is
     answered: the node writes it to the pipe before it answers the parameter change, so a
     client that changes a parameter and then calls the service gets the new values.
     """
 
-    def __init__(self, fd: int) -> None:
-        self.current: tuple = (None, PipelineParams(), 'no robot config received yet')
+    def __init__(self, fd: int, gate: str = '') -> None:
+        self.latest: tuple = (None, PipelineParams(), 'no robot config received yet')
         self.stop = threading.Event()
         self._fd = fd
         self._cond = threading.Condition()
         self._busy = False
-        self._idle, self.priority = _idle_executor()     # the policy queries run at
+        self._gate = gate
+        self._computation = Computation(gate)
+        self.priority = self._computation.policy     # the policy queries run at
 
     def configure(self, config: RobotConfig | None, params: PipelineParams, error: str) -> None:
-        evaluator = None
-        if config is not None:
-            try:
-                evaluator = FeasibilityEvaluator(config)
-                evaluator.hull_tol = max(params.hull_tolerance, evaluator.feasibility_tol)
-            except (AwpError, ValueError) as exc:
-                evaluator, error = None, f'no robot model: {exc}'
-        self.current = (evaluator, params, error)
+        self.latest = (config, params, error)
+        self._computation.configure(config, params, error)
 
     def serve(self, request: Evaluate.Request, response: Evaluate.Response
               ) -> Evaluate.Response:
         with self._cond:        # updates written before this query: applied first
             while not self.stop.is_set() and (self._busy or _readable(self._fd)):
                 self._cond.wait(0.05)
-        evaluator, params, error = self.current
-        return self._idle.submit(evaluate_request, evaluator, params, request,
-                                 error=error).result()
+            computation = self._computation
+        try:
+            return deserialize_message(computation.evaluate(serialize_message(request)),
+                                       Evaluate.Response)
+        except ProcessError as exc:     # the process died: a new one for the next query
+            with self._cond:
+                if computation is self._computation:
+                    computation.close(0.5)
+                    self._computation = Computation(self._gate)
+                    self._computation.configure(*self.latest)
+            _, params, _ = self.latest
+            return evaluate_request(None, params, request, error=f'~/evaluate: {exc}; '
+                                    'restarted it for the next query')
 
     def read_updates(self, out) -> None:
         """Apply every update from the node until its end of the pipe, then stop."""
@@ -412,6 +412,7 @@ class _Worker:
         except OSError:
             pass
         self.stop.set()
+        self._computation.close()
         with self._cond:
             self._cond.notify_all()
 
@@ -432,12 +433,6 @@ def lower_thread_priority() -> str:
             return f'nice +{NICE}'
         except OSError:
             return ''
-
-
-def _idle_executor() -> tuple[ThreadPoolExecutor, str]:
-    """Return a one-thread executor whose thread runs at the lowest priority, and that policy."""
-    pool = ThreadPoolExecutor(1, thread_name_prefix='awp_evaluate_idle')
-    return pool, pool.submit(lower_thread_priority).result()
 
 
 def _readable(fd: int) -> bool:
@@ -475,6 +470,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--service', required=True, help='fully qualified service name')
     parser.add_argument('--node-name', default='_awp_node_evaluate')
     parser.add_argument('--namespace', default='/')
+    parser.add_argument('--gate', default='', help="the node's YieldGate page ('' = none)")
     args = parser.parse_args(argv)
     signal.signal(signal.SIGINT, signal.SIG_IGN)       # Ctrl-C is the node's; it closes us
     tune_process()      # one BLAS thread: idle OpenBLAS threads spin on the node's cores
@@ -487,7 +483,7 @@ def main(argv: list[str] | None = None) -> int:
     stdout = os.fdopen(os.dup(1), 'wb')
     os.dup2(2, 1)
     sys.stdout = sys.stderr
-    worker = _Worker(sys.stdin.fileno())
+    worker = _Worker(sys.stdin.fileno(), args.gate)
     reader = threading.Thread(target=worker.read_updates, args=(stdout,), daemon=True)
     reader.start()
 

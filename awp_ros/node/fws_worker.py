@@ -31,7 +31,7 @@ import sys
 import threading
 
 from awp_ros.evaluation.evaluator import compute_fws, warm_up
-from awp_ros.node.marker_worker import _read, _write, serve
+from awp_ros.node.marker_worker import _read, _write, end_process, serve
 
 __all__ = ['FwsHandle', 'FwsRunner', 'FwsWorker']
 
@@ -122,15 +122,7 @@ class FwsWorker:
         """Stop the worker (after the job it is on) and the reader."""
         with self._lock:
             self._broken = True
-            try:
-                self._process.stdin.close()
-            except OSError:
-                pass
-        try:
-            self._process.wait(timeout_s)
-        except subprocess.TimeoutExpired:
-            self._process.kill()
-            self._process.wait(timeout_s)
+        end_process(self._process, timeout_s)
         self._reader.join(timeout_s)
 
     def _fail(self, reason: str) -> None:

@@ -57,6 +57,8 @@ class InputDrain:
         self._subs = [sub for sub, _ in self._inputs] + [main[0]]
         self._context = context
         self.budget_s = budget_s
+        #: Called when the joint-state queue is empty, before waiting (None = nothing).
+        self.on_idle: Callable[[], None] | None = None
         self._wait_set = None
 
     def run(self) -> int:
@@ -75,7 +77,11 @@ class InputDrain:
                 return count
             self.take_inputs()                   # what woke the wait, if not a joint state
             remaining = end - time.monotonic()
-            if remaining <= 0.0 or not self._context.ok() or not self._wait(remaining):
+            if remaining <= 0.0 or not self._context.ok():
+                return count
+            if self.on_idle is not None:         # the queue is empty: about to wait
+                self.on_idle()
+            if not self._wait(remaining):
                 return count
 
     def take_inputs(self) -> int:

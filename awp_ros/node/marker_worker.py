@@ -122,6 +122,19 @@ class MarkerWorker:
                 self._on_error(f'publishing markers failed: {type(exc).__name__}: {exc}')
 
 
+def end_process(process: subprocess.Popen, timeout_s: float) -> None:
+    """End a worker process: close its stdin (its end of input), wait, kill it if it lingers."""
+    try:
+        process.stdin.close()
+    except OSError:
+        pass
+    try:
+        process.wait(timeout_s)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        process.wait(timeout_s)
+
+
 def _write(stream: BinaryIO, obj) -> None:
     """Write one length-prefixed pickle."""
     data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
@@ -146,15 +159,17 @@ def _read_frame(stream: BinaryIO) -> bytes:
     return data
 
 
-def serve(answer: Callable[[object], object], prefix: str = '') -> int:
+def serve(answer: Callable[[object], object], prefix: str = '', *,
+          stdout: BinaryIO | None = None) -> int:
     """
     Worker loop: answer each job read from stdin until stdin ends; return the exit code.
 
-    Each job is a length-prefixed pickle; its answer, written to stdout the same way, is
-    ``(True, answer(job))`` or ``(False, prefix + reason)`` when ``answer`` raised (the worker
-    goes on).
+    Each job is a length-prefixed pickle; its answer, written to ``stdout`` (default
+    ``sys.stdout``) the same way, is ``(True, answer(job))`` or ``(False, prefix + reason)``
+    when ``answer`` raised (the worker goes on).
     """
-    stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
+    stdin = sys.stdin.buffer
+    stdout = sys.stdout.buffer if stdout is None else stdout
     while True:
         try:
             frame = _read_frame(stdin)

@@ -62,6 +62,7 @@ evaluated), so every joint state still gets its report and latency stays bounded
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import time
 
@@ -89,6 +90,7 @@ from awp_ros.node.input_drain import InputDrain
 from awp_ros.node.lifecycle import run_node
 from awp_ros.node.marker_worker import MarkerWorker
 from awp_ros.node.parameters import NodeParameters
+from awp_ros.node.yield_gate import YieldGate
 from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.conversions import stamp_to_ns
 from awp_ros.ros.pipeline import loss_note, Pipeline, unevaluated_report
@@ -254,10 +256,16 @@ class AwpNode(Node):
         self.marker_worker = None
         if self.parameters.value('marker_worker') and p.marker_rate_hz > 0.0:
             self.marker_worker = MarkerWorker(self.pub_markers.publish, self._output_error)
-        # ~/evaluate: answered by a worker process, beside the stream (evaluate_service.py).
+        # ~/evaluate: answered by a worker process, beside the stream (evaluate_service.py);
+        # its computation is paused while a joint state is handled (yield_gate.py).
+        self.query_gate = YieldGate.create() if self.parameters.value('evaluate_yield') \
+            and hasattr(signal, 'SIGSTOP') else None
         self.evaluate_service = EvaluateService(
             self.resolve_service_name('~/evaluate'), self.get_name(), self.get_namespace(),
-            self._output_error, self.get_logger().info)
+            self._output_error, self.get_logger().info,
+            gate='' if self.query_gate is None else self.query_gate.path)
+        if self.query_gate is not None:
+            self.drain.on_idle = self.query_gate.resume
         config = None if self.pipeline is None else self.pipeline.config
         self.evaluate_service.update(config, p, self.model_error)
         period = self.parameters.value('diagnostics_period_s')
@@ -329,11 +337,22 @@ class AwpNode(Node):
         self.pub_reference.publish(report)
 
     def _on_joint_state(self, msg: JointState, info: dict) -> None:
-        self.drain.take_inputs()
-        self._handle_joint_state(msg, info)
-        self.drain.run()
+        try:
+            self.drain.take_inputs()
+            self._handle_joint_state(msg, info)
+            self.drain.run()
+        finally:
+            if self.query_gate is not None:     # back to the executor: the node is idle
+                self.query_gate.resume()
 
     def _handle_joint_state(self, msg: JointState, info: dict) -> None:
+        # A query being evaluated is stopped from here until the input queue is empty (the
+        # drain's on_idle, or the return to the executor): one stop per busy stretch.
+        if self.query_gate is not None:
+            self.query_gate.pause()
+        self._answer_joint_state(msg, info)
+
+    def _answer_joint_state(self, msg: JointState, info: dict) -> None:
         self.diagnostics.received('joint_states', time.monotonic())
         missing = self.diagnostics.sequence('joint_states',
                                             info.get('publication_sequence_number'))
@@ -393,6 +412,8 @@ class AwpNode(Node):
             self.marker_worker.close()
         self.fws_runner.close()
         self.evaluate_service.close()
+        if self.query_gate is not None:
+            self.query_gate.close()
         self.drain.close()
         super().destroy_node()
 

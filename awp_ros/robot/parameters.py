@@ -343,6 +343,10 @@ _NODE = {     # name: (default, description, read-only)
     'marker_worker': (True, 'build the markers in a worker process (off the joint-state loop; '
                       '~3 ms each); a marker due while two wait for the worker is skipped and '
                       'counted in /diagnostics; false = in the node', True),
+    'evaluate_yield': (True, 'the ~/evaluate computation (a process at SCHED_IDLE) is '
+                       'stopped while the node handles a joint state, so a query never '
+                       'competes with the stream for the cores and caches (it waits while the '
+                       'node is busy); false = it runs beside the node at SCHED_IDLE', True),
     'blas_threads': (1, 'threads of the BLAS under numpy/scipy in this process '
                      '(threadpoolctl); 1 avoids the stalls of busy-waiting BLAS threads on '
                      'cores shared with DDS and other processes; 0 = leave as is', True),

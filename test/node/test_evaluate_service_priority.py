@@ -1,4 +1,4 @@
-"""The query worker evaluates at the lowest priority in one thread only (evaluate_service)."""
+"""The query worker's processes: their session, groups and CPU policies (evaluate_service)."""
 
 import os
 from pathlib import Path
@@ -7,7 +7,7 @@ import threading
 
 import pytest
 
-from awp_ros.node.evaluate_service import _idle_executor, EvaluateService, lower_thread_priority
+from awp_ros.node.evaluate_service import EvaluateService, lower_thread_priority
 from awp_ros.soak.probe import wait_until
 
 linux_only = pytest.mark.skipif(not sys.platform.startswith('linux'),
@@ -31,18 +31,6 @@ def test_lower_thread_priority_changes_the_calling_thread_only():
 
 
 @linux_only
-def test_the_idle_thread_runs_calls_at_sched_idle_and_hands_back_values_and_errors():
-    idle, policy = _idle_executor()
-    assert policy == 'SCHED_IDLE'
-    assert idle.submit(lambda: os.sched_getscheduler(0)).result() == os.SCHED_IDLE
-    assert idle.submit(divmod, 7, 2).result() == (3, 1)
-    with pytest.raises(ZeroDivisionError):
-        idle.submit(divmod, 1, 0).result()
-    assert os.sched_getscheduler(0) != os.SCHED_IDLE
-    idle.shutdown()
-
-
-@linux_only
 def test_the_worker_runs_in_the_nodes_session_in_a_process_group_of_its_own(ros_env,
                                                                             monkeypatch):
     # Autogroup scheduling makes each session a task group with a fair share of the CPU
@@ -62,7 +50,14 @@ def test_the_worker_runs_in_the_nodes_session_in_a_process_group_of_its_own(ros_
             assert Path(f'/proc/{pid}/autogroup').read_text().split()[0] == \
                 group.read_text().split()[0]
         wait_until(lambda: any('ready' in line for line in lines), 60.0, 'the worker')
+        # Its DDS threads at the normal policy; the evaluation in a child process (the query
+        # computation, evaluate_compute) at SCHED_IDLE, in the same session.
         policies = {os.sched_getscheduler(int(task)) for task in os.listdir(f'/proc/{pid}/task')}
-        assert os.SCHED_IDLE in policies and os.SCHED_OTHER in policies, lines
+        assert policies == {os.SCHED_OTHER}, lines
+        children = Path(f'/proc/{pid}/task/{pid}/children').read_text().split()
+        assert len(children) == 1, children
+        child = int(children[0])
+        assert os.sched_getscheduler(child) == os.SCHED_IDLE
+        assert os.getsid(child) == os.getsid(0)
     finally:
         service.close()

@@ -85,3 +85,24 @@ def test_drain_takes_contacts_before_each_joint_state_and_respects_its_budget(pe
     got = []
     assert _wait(lambda: got.append(drain.run()) or sum(got) == 1, 10.0), (got, log[-3:])
     drain.close()
+
+
+def test_on_idle_is_called_once_the_queue_is_empty_not_between_queued_joint_states(peers):
+    # What the node uses to continue a stopped query computation (yield_gate): once per
+    # stretch of queued joint states, when the queue is empty and the drain is about to wait.
+    pub_node, sub_node = peers
+    log = []
+    js_sub = sub_node.create_subscription(JointState, 'joint_states', lambda m: None, QOS)
+    js_pub = pub_node.create_publisher(JointState, 'joint_states', QOS)
+    assert _wait(lambda: js_pub.get_subscription_count())
+    for i in range(50):
+        msg = JointState()
+        msg.header.stamp.nanosec = i
+        js_pub.publish(msg)
+    time.sleep(1.0)
+    drain = InputDrain([], (js_sub, lambda m, info: log.append(m.header.stamp.nanosec)),
+                       sub_node.context, budget_s=0.5)
+    drain.on_idle = lambda: log.append('idle')
+    assert drain.run() == 50
+    assert log[:50] == list(range(50)) and set(log[50:]) == {'idle'} and len(log) > 50
+    drain.close()
