@@ -53,7 +53,7 @@ class YieldGate:
             os.close(fd)
         self._slots = memoryview(self._map).cast('i')
         self._stopped = 0
-        #: Pauses made (joint states handled while the worker was busy).
+        #: Stops made (busy stretches of the node that met a busy worker).
         self.pauses = 0
 
     @classmethod
@@ -88,7 +88,7 @@ class YieldGate:
     # -- the node's side --------------------------------------------------------------------
 
     def pause(self) -> None:
-        """Stop the worker's process if it is busy (a no-op otherwise)."""
+        """Stop the worker's process if it is busy and not stopped already (else a no-op)."""
         if self._slots[1] and not self._stopped:
             pid = self._slots[0]
             if pid > 0:
@@ -107,15 +107,6 @@ class YieldGate:
                 os.kill(pid, signal.SIGCONT)
             except OSError:
                 pass
-
-    @contextmanager
-    def paused(self):
-        """Pause the busy worker for the block."""
-        self.pause()
-        try:
-            yield
-        finally:
-            self.resume()
 
     def close(self) -> None:
         """Continue a stopped worker, unmap the page; the node also removes its file."""
