@@ -130,7 +130,13 @@ def main(argv: list[str] | None = None) -> int:
     from awp_ros.runtime import tune_process
     tune_process()      # one BLAS thread
     policy = lower_thread_priority()   # the process has one thread: all of it
-    gate = YieldGate.attach(args.gate) if args.gate else None
+    try:
+        gate = YieldGate.attach(args.gate) if args.gate else None
+    except FileNotFoundError:
+        # The node closes (unlinks) its page when it stops: stopped before this process
+        # was up, it has no job for it.
+        print(f'~/evaluate: the node closed its gate {args.gate}: exiting', file=sys.stderr)
+        return 0
     # Answers go through a copy of fd 1; what a library prints goes to stderr.
     out = os.fdopen(os.dup(1), 'wb')
     os.dup2(2, 1)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport
@@ -82,3 +83,14 @@ def test_a_dead_process_is_a_process_error():
     with pytest.raises(ProcessError, match='ended'):
         comp.evaluate(b'')
     comp.close()
+
+
+def test_a_gate_closed_before_the_process_is_up_ends_it_quietly(tmp_path):
+    # A node stopped right after starting unlinks its gate before the process attaches.
+    gone = tmp_path / 'awp_gate_gone'
+    proc = subprocess.run([sys.executable, '-m', 'awp_ros.node.evaluate_compute', '--gate',
+                           str(gone)], stdin=subprocess.DEVNULL, capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert 'Traceback' not in proc.stderr
+    assert 'closed its gate' in proc.stderr
