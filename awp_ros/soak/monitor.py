@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-__all__ = ['ProcessMonitor', 'proc_usage']
+__all__ = ['children', 'ProcessMonitor', 'proc_usage']
 
 _CLK_TCK = os.sysconf('SC_CLK_TCK')
 
@@ -33,17 +33,48 @@ def proc_usage(pid: int) -> tuple[float, int]:
     return cpu, rss
 
 
+def children(pid: int) -> dict[int, str]:
+    """
+    Return the child processes of ``pid``: process id -> name.
+
+    From ``/proc/<pid>/task/*/children``; the name is the module of a ``python -m <module>``
+    child (e.g. ``awp_ros.node.fws_worker``), else its command.
+    """
+    out = {}
+    try:
+        tasks = os.listdir(f'/proc/{pid}/task')
+    except OSError:
+        return out
+    for task in tasks:
+        try:
+            with open(f'/proc/{pid}/task/{task}/children') as f:
+                pids = [int(c) for c in f.read().split()]
+        except OSError:
+            continue
+        for child in pids:
+            try:
+                with open(f'/proc/{child}/cmdline') as f:
+                    argv = f.read().split('\0')
+            except OSError:
+                continue
+            out[child] = argv[argv.index('-m') + 1] if '-m' in argv[:-1] else argv[0]
+    return out
+
+
 class ProcessMonitor:
     """
     Sample a process's CPU time and RSS every ``period_s`` in a background thread.
 
     ``samples`` rows: (wall time [s, time.monotonic], CPU time [s], RSS [B]).
+    ``child_samples``: for each child process (its workers), name -> rows (wall time [s],
+    CPU time [s]); a child that ends keeps its rows.
     """
 
     def __init__(self, pid: int, period_s: float = 1.0) -> None:
         self.pid = pid
         self.period_s = period_s
         self.samples: list[tuple[float, float, int]] = []
+        self.child_samples: dict[str, list[tuple[float, float]]] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
         self._thread.start()
@@ -54,7 +85,15 @@ class ProcessMonitor:
                 cpu, rss = proc_usage(self.pid)
             except (OSError, ValueError, IndexError):     # the process ended
                 return
-            self.samples.append((time.monotonic(), cpu, rss))
+            now = time.monotonic()
+            self.samples.append((now, cpu, rss))
+            for child, name in children(self.pid).items():
+                try:
+                    child_cpu = proc_usage(child)[0]
+                except (OSError, ValueError, IndexError):
+                    continue
+                self.child_samples.setdefault(f'{name} (pid {child})', []).append(
+                    (now, child_cpu))
             self._stop.wait(self.period_s)
 
     def stop(self) -> None:

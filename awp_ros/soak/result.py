@@ -35,6 +35,7 @@ class SoakResult:
     latency_ms: dict = field(default_factory=dict)
     latency_after_warmup_ms: dict = field(default_factory=dict)
     cpu_percent: dict = field(default_factory=dict)
+    workers_cpu_percent: dict = field(default_factory=dict)
     rss_mb: dict = field(default_factory=dict)
     rss_growth_percent: float = float('nan')
     drain_s: float = 0.0
@@ -78,6 +79,9 @@ class SoakResult:
             f'{rss.get("warm", float("nan")):.1f}, end of drive '
             f'{rss.get("end", float("nan")):.1f}, max {rss.get("max", float("nan")):.1f}; '
             f'growth after warm-up {self.rss_growth_percent:.2f} %',
+            "the node's worker processes, CPU [% of one core] while driven (mean): " + (
+                ', '.join(f'{name} {cpu:.0f}' for name, cpu in self.workers_cpu_percent.items())
+                or 'none'),
             f'last report {self.drain_s:.2f} s after the last joint state; the node counted '
             f'{self.node_missing_from_sequence} joint states missing from the sequence and '
             f'{self.node_lost_total} lost (DDS events); its compute time p50 '
@@ -97,8 +101,14 @@ def percentiles(x: np.ndarray) -> dict:
 
 
 def fill_usage(result: SoakResult, s: np.ndarray, t_start: float, t_end: float,
-               warmup_s: float) -> None:
+               warmup_s: float, child_samples: dict | None = None) -> None:
     """Fill CPU and RSS figures from the monitor's samples (drive window only)."""
+    for name, rows in (child_samples or {}).items():
+        c = np.array(rows, dtype=float).reshape(-1, 2)
+        c = c[(c[:, 0] >= t_start) & (c[:, 0] <= t_end)]
+        if len(c) >= 2:
+            result.workers_cpu_percent[name] = float((c[-1, 1] - c[0, 1])
+                                                     / (c[-1, 0] - c[0, 0]) * 100.0)
     if len(s) < 2:
         return
     drive = s[(s[:, 0] >= t_start) & (s[:, 0] <= t_end)]

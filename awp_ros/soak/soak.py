@@ -18,9 +18,10 @@ Three processes on one ROS domain (``ROS_DOMAIN_ID``; discovery kept on this mac
    sent to a file;
 3. this process: subscribes to ``<ns>/awp_node/report`` and ``/diagnostics`` and samples
    the node's CPU time and RSS from ``/proc/<pid>/stat`` and ``/proc/<pid>/status`` every
-   ``--sample-period`` seconds. With ``--subscribe markers fwp ...`` it also subscribes to
-   those outputs of the node (``~/<name>``, as serialized bytes, counted), like RViz or a
-   planner would: the node only builds an output that has a subscriber.
+   ``--sample-period`` seconds, and the CPU time of its worker processes. With
+   ``--subscribe markers fwp ...`` it also subscribes to those outputs of the node
+   (``~/<name>``, as serialized bytes, counted), like RViz or a planner would: the node only
+   builds an output that has a subscriber.
 
 Measured: joint states sent and their rate, reports received, **missing** (a stamp sent
 without a report), **duplicates**, unexpected stamps, the report statuses, the latency
@@ -40,6 +41,7 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
+import struct
 import subprocess
 import sys
 import tempfile
@@ -56,7 +58,7 @@ from awp_ros.soak.probe import Probe, wait_until
 from awp_ros.soak.result import (fill_node_diagnostics, fill_timeline, fill_usage, percentiles,
                                  SoakResult)
 
-__all__ = ['main', 'run_soak']
+__all__ = ['main', 'report_stamp_status', 'run_soak']
 
 
 def _output_types() -> dict:
@@ -68,6 +70,21 @@ def _output_types() -> dict:
 
 
 OUTPUT_TYPES = _output_types()
+
+
+def report_stamp_status(data: bytes) -> tuple[int, int]:
+    """
+    Return the header stamp [ns] and the status of a serialized ``FeasibilityReport``.
+
+    Read from the CDR bytes without deserializing the message (the soak's subscriber, on the
+    node's cores, keeps to what it measures): a 4-byte encapsulation header (little endian,
+    ``00 01``), ``int32 sec``, ``uint32 nanosec``, the ``frame_id`` string (``uint32`` length
+    with its NUL, then the bytes) and the ``uint8 status`` right after it.
+    """
+    if data[:2] != b'\x00\x01':
+        raise ValueError(f'not a little-endian CDR message: {data[:4]!r}')
+    sec, nanosec, length = struct.unpack_from('<iII', data, 4)
+    return sec * 1_000_000_000 + nanosec, data[16 + length]
 
 
 def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
@@ -119,16 +136,15 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     status = np.zeros(stamps.size, dtype=np.int8)
     count = [0]
 
-    def on_report(msg) -> None:
+    def on_report(data: bytes) -> None:
         i = count[0]
         if i < stamps.size:
-            stamps[i] = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
             recv[i] = time.time_ns()
-            status[i] = msg.status
+            stamps[i], status[i] = report_stamp_status(data)
         count[0] = i + 1
 
     probe.subscribe(FeasibilityReport, f'{ns}/awp_node/report', on_report,
-                    depth=max(qos_depth, n_max + 1000))    # never the bottleneck
+                    depth=max(qos_depth, n_max + 1000), raw=True)  # never the bottleneck
     diag = probe.subscribe(DiagnosticArray, '/diagnostics', depth=100)
     received = {name: [0] for name in subscribe}
     for name in subscribe:
@@ -194,7 +210,8 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     offset = time.time_ns() * 1e-9 - time.monotonic()
     t_start, t_stop = sent[0] * 1e-9 - offset, sent[-1] * 1e-9 - offset
     samples = monitor.array() if monitor else np.zeros((0, 3))
-    fill_usage(result, samples, t_start, t_stop, warmup_s)
+    fill_usage(result, samples, t_start, t_stop, warmup_s,
+               monitor.child_samples if monitor else None)
     fill_timeline(result, samples, t_start, int(sent[0]), rcv, latency,
                   timeline_step_s or max(duration_s / 12, sample_period_s))
     fill_node_diagnostics(result, diag, probe.lock)

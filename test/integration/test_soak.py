@@ -15,11 +15,14 @@ import math
 import os
 import re
 import resource
+import subprocess
+import sys
+import time
 
 from awp_ros_msgs.msg import FeasibilityReport
 import numpy as np
 
-from awp_ros.soak.monitor import proc_usage, ProcessMonitor
+from awp_ros.soak.monitor import children, proc_usage, ProcessMonitor
 from awp_ros.soak.probe import Probe
 from awp_ros.soak.soak import run_soak
 
@@ -43,6 +46,34 @@ def test_proc_usage_reads_cpu_time_and_rss_of_a_process():
     assert s.shape[1] == 3 and np.all(np.diff(s[:, 0]) > 0) and np.all(np.diff(s[:, 1]) >= 0)
 
 
+def test_the_monitor_samples_the_cpu_of_child_processes_by_module():
+    child = subprocess.Popen([sys.executable, '-m', 'timeit', '-n', '100000000', 'pass'],
+                             stdout=subprocess.DEVNULL)
+    try:
+        assert wait_for_child(child.pid) == 'timeit'
+        mon = ProcessMonitor(os.getpid(), period_s=0.05)
+        time.sleep(0.6)
+        mon.stop()
+    finally:
+        child.kill()
+        child.wait()
+    rows = np.array(mon.child_samples[f'timeit (pid {child.pid})'])
+    busy = (rows[-1, 1] - rows[0, 1]) / (rows[-1, 0] - rows[0, 0])
+    assert len(rows) >= 5 and 0.3 < busy <= 1.05, busy       # one busy thread
+    assert children(child.pid) == {}
+
+
+def wait_for_child(pid: int) -> str:
+    """Return the name :func:`children` gives a child of this process, once it runs."""
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        name = children(os.getpid()).get(pid)
+        if name and name != sys.executable:     # past the exec of its command line
+            return name
+        time.sleep(0.01)
+    raise AssertionError(f'no child {pid}: {children(os.getpid())}')
+
+
 def test_short_soak_loses_nothing_and_rss_stays_flat(ros_env):
     r = run_soak(150.0, 5.0, env=ros_env, warmup_s=2.0, sample_period_s=0.25)
     print('\n' + r.table())
@@ -53,6 +84,8 @@ def test_short_soak_loses_nothing_and_rss_stays_flat(ros_env):
     assert r.node_missing_from_sequence == 0 and r.node_lost_total == 0
     assert r.rss_growth_percent < 5.0, r.rss_mb
     assert 0.0 < r.cpu_percent['mean'] < 250.0                  # sanity, not a rate
+    assert any(name.startswith('awp_ros.node.marker_worker (pid ')
+               for name in r.workers_cpu_percent), r.workers_cpu_percent
     assert r.latency_ms['p50'] > 0.0 and len(r.timeline) >= 4
 
 
@@ -148,3 +181,14 @@ def test_the_fws_off_the_loop_comes_lagged_by_stamps_over_dds(ros_env):
         assert m.feasible == (m.fwp_feasible and m.fws_feasible)
         fws_stamps.add(t)
     assert without > 0 and len(fws_stamps) >= 30, (without, len(fws_stamps))
+
+
+def test_the_stamp_and_status_are_read_from_a_serialized_report():
+    from rclpy.serialization import serialize_message
+    from awp_ros.soak.soak import report_stamp_status
+    for frame, st in (('', 0), ('world', 3), ('a' * 13, 4)):
+        msg = FeasibilityReport(status=st, status_message='x', fws_margin=1.5)
+        msg.header.frame_id = frame
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 1_700_000_123, 999_999_999
+        assert report_stamp_status(serialize_message(msg)) == (
+            1_700_000_123_999_999_999, st)
