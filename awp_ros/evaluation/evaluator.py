@@ -53,6 +53,7 @@ import numpy as np
 from awp_ros.errors import AwpError, ConfigError, GeometryError, InputError
 from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
 from awp_ros.geometry import kernels
+from awp_ros.geometry.linalg import identity
 from awp_ros.geometry.margin import directional_margins, polytope_margin
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.robot.config import load_config, RobotConfig
@@ -153,7 +154,7 @@ class FeasibilityEvaluator:
         w, p = kin.wrench, kin.p_foot__com
         if wrench is not None:
             w = np.asarray(wrench, dtype=float)
-            if w.shape != (6,) or not np.all(np.isfinite(w)):
+            if w.shape != (6,) or not np.isfinite(w).all():
                 raise InputError(f'wrench must be 6 finite numbers [N, N.m], got {wrench!r}')
         # The CoM velocity (world axes), when the base's is known: Pinocchio's vcom, which
         # the centroidal momentum of the model stage filled (v holds the base twist).
@@ -289,7 +290,7 @@ class FeasibilityEvaluator:
         :raises InputError: ``wrench`` is not 6 finite numbers.
         """
         w = np.asarray(wrench, dtype=float)
-        if w.shape != (6,) or not np.all(np.isfinite(w)):
+        if w.shape != (6,) or not np.isfinite(w).all():
             raise InputError(f'wrench must be 6 finite numbers [N, N.m], got {wrench!r}')
         fws = result.fws if fws is None else fws
         tol, hull_tol = self.feasibility_tol, self.hull_tol
@@ -370,7 +371,7 @@ class FeasibilityEvaluator:
             ratio = pp['sigma_ratio'].tolist()
             center, gen, V, A, b = (pp[key] for key in ('center', 'generators', 'vertices',
                                                         'A', 'b'))
-            eye, zero = np.eye(3), np.zeros(3)
+            eye, zero = identity(3), np.zeros(3)
             for k in range(K):
                 if ratio[k] > self.singular_rtol:
                     meta = {'singular': False,
@@ -439,7 +440,7 @@ class FeasibilityEvaluator:
             W = np.asarray(wrenches, dtype=float)
             if W.shape == (6,):
                 W = np.broadcast_to(W, (n, 6))
-            if W.shape != (n, 6) or not np.all(np.isfinite(W)):
+            if W.shape != (n, 6) or not np.isfinite(W).all():
                 raise InputError(f'wrenches must be 6 finite numbers [N, N.m] or one such row '
                                  f'per state ({n}, 6), got shape {W.shape}')
         order = sorted(range(n), key=lambda i: _contacts_key(states[i]))

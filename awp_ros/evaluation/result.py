@@ -293,7 +293,7 @@ def _floats(x: np.ndarray) -> list:
 
 def _rows(X: np.ndarray) -> list:
     X = np.asarray(X, dtype=float)
-    if np.all(np.isfinite(X)):
+    if np.isfinite(X).all():
         return X.tolist()
     return [_floats(row) for row in X]
 

@@ -166,7 +166,7 @@ def polytope_faces(points: np.ndarray, halfspaces: tuple[np.ndarray, np.ndarray]
     V = np.asarray(points, dtype=float)
     if V.ndim != 2 or V.shape[1] != 3:
         raise InputError(f'points must have shape (n, 3); got shape {V.shape}')
-    if not np.all(np.isfinite(V)):
+    if not np.isfinite(V).all():
         raise InputError('points must be finite; got NaN or inf')
     if V.shape[0] == 0:
         empty = np.zeros((0, 3))

@@ -181,7 +181,7 @@ class _BalanceLp:
         for k, (H, g) in enumerate(halfspaces):
             H = np.asarray(H, dtype=float).reshape(-1, 3)
             g = np.asarray(g, dtype=float).reshape(-1)
-            finite = bool(np.all(np.isfinite(H)) and np.all(np.isfinite(g)))
+            finite = bool(np.isfinite(H).all() and np.isfinite(g).all())
             if H.shape[0] != g.shape[0] or not finite:
                 raise InputError(f'halfspaces[{k}] must be finite (r, 3) and (r,) arrays')
             c = 2 + 3 * k

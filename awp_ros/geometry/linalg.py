@@ -42,6 +42,7 @@ __all__ = [
     'cross3',
     'distinct_columns',
     'hyperplane_normals',
+    'identity',
     'orthonormal_span',
     'subset_cross_products',
     'subset_normals',
@@ -106,6 +107,19 @@ def subset_tree(subsets: np.ndarray) -> SubsetTree:
         gathers.append(pos)
         windows.append((lo, hi))
     return SubsetTree(tuple(levels), leaf, m, k, n_vec, tuple(gathers), tuple(windows))
+
+
+@lru_cache(maxsize=8)
+def identity(n: int) -> np.ndarray:
+    """
+    Return the ``n x n`` identity, one shared read-only array per ``n``.
+
+    For the hull bases and frames the per-cycle code passes on unchanged (``np.eye`` costs
+    ~1-2.5 us a call, five calls a cycle); writing into it raises instead of corrupting it.
+    """
+    eye = np.eye(n)
+    eye.setflags(write=False)
+    return eye
 
 
 def cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -269,13 +283,13 @@ def orthonormal_span(V: np.ndarray, rtol: float = 1e-9) -> np.ndarray:
         if info == 0 and trace > 0.0:        # det G / (tr G)^n, without over/underflow
             ratio = math.prod([x * x / trace for x in R.diagonal().tolist()])
             if ratio > max(rtol * rtol, GRAM_CERTIFY):
-                return np.eye(n)
+                return identity(n)
     _, s, vt = np.linalg.svd(V, full_matrices=False)
     if s.size == 0 or s[0] == 0.0:
         return np.zeros((n, 0))
     r = int(np.sum(s > rtol * s[0]))
     if r == n:
-        return np.eye(n)
+        return identity(n)
     return vt[:r].T
 
 

@@ -113,16 +113,20 @@ def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6
     o = P.hull_origin
     d = w - o
     r = U.shape[1]
-    y = U.T @ d
-    residual = 0.0 if r == n else float(np.linalg.norm(d - U @ y))
+    if r == n:                      # full-dimensional: y = d, nothing off the hull
+        y, off_hull, residual = d, np.zeros(n), 0.0
+    else:
+        y = U.T @ d
+        off_hull = d - U @ y
+        residual = float(np.linalg.norm(off_hull))
     if r == 0:
         return _signed(0.0, np.zeros(n), 0, residual, feasibility_tol, hull_tol, d)
     # Eq. (1): the rows lie in the hull's direction space, so A w = A proj(w).
     s = P.b - P.A @ w
     if s.size == 0:
         return _signed(np.inf, np.zeros(n), P.dimension, residual, feasibility_tol, hull_tol,
-                       d - U @ y)
-    i = int(np.argmin(s))
+                       off_hull)
+    i = int(s.argmin())
     if s[i] >= 0.0:
         margin = float(s[i])
         normal = P.A[i].copy()
@@ -141,7 +145,7 @@ def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6
         if r < n:
             normal = U @ normal
     return _signed(margin, normal, P.dimension, residual, feasibility_tol, hull_tol,
-                   d - U @ y)
+                   off_hull)
 
 
 def _signed(m_hull: float, normal: np.ndarray, dimension: int, residual: float, tol: float,
@@ -194,7 +198,7 @@ def directional_margins(P: Polytope, w: np.ndarray, directions: np.ndarray | Non
     n = P.ambient_dim
     w = _check_point(w, n)
     D = np.eye(n) if directions is None else np.asarray(directions, dtype=float)
-    if D.ndim != 2 or D.shape[1] != n or not np.all(np.isfinite(D)):
+    if D.ndim != 2 or D.shape[1] != n or not np.isfinite(D).all():
         msg = f'directions must be a finite array of shape (k, {n}); got shape {D.shape}'
         raise InputError(msg)
     k = D.shape[0]
@@ -247,7 +251,7 @@ def _check_point(w: np.ndarray, n: int) -> np.ndarray:
     if arr.shape != (n,):
         msg = f'point must have shape ({n},); got shape {arr.shape}'
         raise InputError(msg)
-    if not np.all(np.isfinite(arr)):
+    if not np.isfinite(arr).all():
         msg = f'point must be finite; got {arr.tolist()}'
         raise InputError(msg)
     return arr

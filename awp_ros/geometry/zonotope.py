@@ -151,7 +151,7 @@ def _check(center: np.ndarray, generators: np.ndarray) -> tuple[np.ndarray, np.n
     if c.ndim != 1 or G.ndim != 2 or G.shape[0] != c.shape[0]:
         msg = f'zonotope needs center (n,) and generators (n, m); got {c.shape} and {G.shape}'
         raise InputError(msg)
-    if not (np.all(np.isfinite(c)) and np.all(np.isfinite(G))):
+    if not (np.isfinite(c).all() and np.isfinite(G).all()):
         msg = 'zonotope center and generators must be finite'
         raise InputError(msg)
     return c, G

@@ -65,7 +65,7 @@ from awp_ros.errors import AwpError, ConfigError, InputError
 from awp_ros.estimation.motion import fill_motion, MotionEstimator
 from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator
 from awp_ros.evaluation.result import FeasibilityResult, WrenchSetResult
-from awp_ros.geometry.linalg import quaternion_matrix
+from awp_ros.geometry.linalg import identity, quaternion_matrix
 from awp_ros.robot.config import check_keys, load_config, RobotConfig
 from awp_ros.robot.parameters import PipelineParams, ros_parameters
 from awp_ros.ros.contact_source import EffortContacts
@@ -370,7 +370,7 @@ class Pipeline:
         result = None
         fws_computed = False
         released = None
-        R = np.eye(3)
+        R = identity(3)
         source = p.contact_source
         contacts = self._contacts.pick(ns) if source == 'topic' else None
         imu = self._imu.pick(ns) if p.use_imu else None
@@ -446,7 +446,7 @@ class Pipeline:
         marker_header = Header(stamp=msg.header.stamp,
                                frame_id=p.marker_frame_id or p.wrench_frame_id)
         if p.marker_frame_id in ('', p.wrench_frame_id):
-            frame = (np.eye(3), np.zeros(3))
+            frame = (identity(3), np.zeros(3))
         else:  # the root link: x_base = R^T (com + x)
             frame = (R.T, R.T @ com)
         style = MarkerStyle(force_scale=p.marker_force_scale,

@@ -41,8 +41,9 @@ import numpy as np
 
 from awp_ros.errors import InputError
 from awp_ros.geometry import kernels
-from awp_ros.geometry.linalg import (cross3, distinct_columns, GRAM_CERTIFY, orthonormal_span,
-                                     subset_cross_products, subset_tree, SubsetTree, workspace)
+from awp_ros.geometry.linalg import (cross3, distinct_columns, GRAM_CERTIFY, identity,
+                                     orthonormal_span, subset_cross_products, subset_tree,
+                                     SubsetTree, workspace)
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.wrench.wrench_polytope import lift_points
 
@@ -170,13 +171,13 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
     N_ = np.asarray(normals, dtype=float).reshape(-1, 3) if np.size(normals) else \
         np.zeros((0, 3))
     K = P.shape[0]
-    if N_.shape[0] != K or not np.all(np.isfinite(P)):
+    if N_.shape[0] != K or not np.isfinite(P).all():
         msg = (f'contact_wrench_cone needs finite positions (K, 3) and normals (K, 3); '
                f'got {np.shape(positions)} and {np.shape(normals)}')
         raise InputError(msg)
     try:
-        mu = np.ascontiguousarray(np.broadcast_to(
-            np.asarray(friction_coefficients, dtype=float), (K,)))
+        mu = np.asarray(friction_coefficients, dtype=float)
+        mu = np.ascontiguousarray(mu if mu.shape == (K,) else np.broadcast_to(mu, (K,)))
     except ValueError as exc:
         msg = f'friction coefficients must be a scalar or ({K},); got {friction_coefficients!r}'
         raise InputError(msg) from exc
@@ -197,7 +198,7 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
         lifted = lift_rays(P, rays).reshape(K * sides, 6)
         lifted /= np.sqrt(np.einsum('ij,ij->i', lifted, lifted))[:, None]
     # Full rank certified as orthonormal_span would (the kernel), else its SVD decides.
-    U = np.eye(6) if full else orthonormal_span(lifted, rtol=span_tol)
+    U = identity(6) if full else orthonormal_span(lifted, rtol=span_tol)
     meta = {'kind': 'cone', 'rays': lifted}
     r = U.shape[1]
     rh = lifted if r == 6 else lifted @ U                               # (K N, r)

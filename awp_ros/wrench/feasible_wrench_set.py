@@ -117,7 +117,7 @@ def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
         msg = f'cone_tol={cone_tol!r} must be >= {FLOAT32_SLACK} (float32 filter rounding)'
         raise InputError(msg)
     P = np.asarray(positions, dtype=float)
-    if P.ndim != 2 or P.shape[1] != 3 or not np.all(np.isfinite(P)):
+    if P.ndim != 2 or P.shape[1] != 3 or not np.isfinite(P).all():
         raise InputError(f'positions must be a finite (K, 3) array; got shape {P.shape}')
     if len(vertex_sets) != P.shape[0]:
         msg = f'{len(vertex_sets)} vertex sets for {P.shape[0]} positions'

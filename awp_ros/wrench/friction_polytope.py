@@ -145,7 +145,7 @@ def vertex_inside(forces: Sequence[Polytope], rows: np.ndarray, *,
     if K and all(F.vertices.shape == forces[0].vertices.shape for F in forces):
         V = np.array([F.vertices for F in forces])                     # (K, n_v, 3)
         s = V @ rows.transpose(0, 2, 1)                                 # (K, n_v, N + 1)
-        return np.any(np.all(s < -margin, axis=2), axis=1)
+        return (s < -margin).all(axis=2).any(axis=1)
     return np.array([bool(np.any(np.all(F.vertices @ rows[k].T < -margin, axis=1)))
                      for k, F in enumerate(forces)], dtype=bool)
 

@@ -58,7 +58,7 @@ def lp_directional_margins(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
     if P.ndim != 2 or P.shape[1] != 3 or len(vertex_sets) != P.shape[0]:
         msg = f'positions {P.shape} and {len(vertex_sets)} vertex sets do not match'
         raise InputError(msg)
-    if w.shape != (6,) or not np.all(np.isfinite(w)) or not np.all(np.isfinite(P)):
+    if w.shape != (6,) or not np.isfinite(w).all() or not np.isfinite(P).all():
         raise InputError(f'w must be a finite (6,) wrench; got shape {w.shape}')
     nan = np.full(6, np.nan)
     V = [np.asarray(v, dtype=float).reshape(-1, 3) for v in vertex_sets]

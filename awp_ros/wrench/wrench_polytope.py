@@ -22,7 +22,7 @@ import numpy as np
 
 from awp_ros.errors import InputError
 from awp_ros.geometry import kernels
-from awp_ros.geometry.linalg import cross3, GRAM_CERTIFY
+from awp_ros.geometry.linalg import cross3, GRAM_CERTIFY, identity
 from awp_ros.geometry.lp import chebyshev_ball
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.geometry.zonotope import facet_subsets, zonotope, ZONOTOPE_TOLS
@@ -102,7 +102,7 @@ def actuation_wrench_polytope(positions: np.ndarray, centers: np.ndarray,
                                         tol['rank_tol'], tol['incidence_tol'])
         if fused is not None:       # full-dimensional (else the general code decides)
             A, b, c = fused
-            return Polytope(6, np.zeros((0, 6)), A, b, c, np.eye(6),
+            return Polytope(6, np.zeros((0, 6)), A, b, c, identity(6),
                             {'kind': 'zonotope', 'generators': 3 * K})
     # One lift for the centre and the three generators of every leg: (K, 4, 6).
     lifted = lift_points(P, np.concatenate([C[:, None, :], H.transpose(0, 2, 1)], axis=1))
@@ -181,7 +181,7 @@ def _check_legs(positions: np.ndarray, centers: np.ndarray,
                f'{P.shape}, {C.shape}, {H.shape}')
         raise InputError(msg)
     for name, arr in (('positions', P), ('centers', C), ('generators', H)):
-        if not np.all(np.isfinite(arr)):
+        if not np.isfinite(arr).all():
             msg = f'AWP {name} must be finite; got {arr.tolist()}'
             raise InputError(msg)
     return P, C, H
