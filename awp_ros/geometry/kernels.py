@@ -57,7 +57,8 @@ except ImportError:  # pragma: no cover - exercised only on installs without num
     numba = None
 
 __all__ = [
-    'ENABLED', 'MAX_BITS', 'cone_facets', 'cone_recheck', 'cross_products', 'flat_cone_facets',
+    'ENABLED', 'MAX_BITS', 'cone_double_description', 'cone_facets', 'cone_recheck',
+    'cross_products', 'flat_cone_facets',
     'feasible_region', 'flat_zonotope_facets', 'leg_vertices', 'lifted_rays', 'lifted_zonotope',
     'parallelepipeds', 'polar_hull', 'polygon_region', 'projected_polygon', 'wedge_tables',
     'wrench_slice', 'zonotope_facets']
@@ -680,6 +681,223 @@ def cone_recheck(rays: np.ndarray, spans: np.ndarray, masks: np.ndarray, side_to
     A, ok = _cone_recheck(np.ascontiguousarray(rays, dtype=float), spans, masks,
                           float(side_tol), float(rank_tol))
     return A if ok else None
+
+
+@_jit(inline=True)
+def _popcount(x):
+    """Return the number of set bits of a non-negative int64."""
+    count = 0
+    while x:
+        x &= x - 1
+        count += 1
+    return count
+
+
+@_jit(inline=True)
+def _unit_rows(X, n, r):
+    """Scale rows ``0 .. n - 1`` of ``X`` to unit length."""
+    for i in range(n):
+        acc = 0.0
+        for t in range(r):
+            acc += X[i, t] * X[i, t]
+        inv = 1.0 / np.sqrt(acc)
+        for t in range(r):
+            X[i, t] *= inv
+
+
+@_jit
+def _cone_dd(R, side_tol, rank_tol, cap):
+    N, r = R.shape
+    V = np.ascontiguousarray(R.T)
+    fail = (np.empty((0, r)), np.empty((0, r - 1), dtype=np.int64),
+            np.empty(0, dtype=np.int64), False)
+    # (1) r independent rays (Gram-Schmidt, in index order): their polar is simplicial.
+    Q = np.zeros((r, r))
+    basis = np.empty(r, dtype=np.int64)
+    nb = 0
+    v = np.empty(r)
+    for j in range(N):
+        for t in range(r):
+            v[t] = R[j, t]
+        for i in range(nb):
+            d = 0.0
+            for t in range(r):
+                d += Q[i, t] * v[t]
+            for t in range(r):
+                v[t] -= d * Q[i, t]
+        nv = np.sqrt(_norm2(v))
+        if nv > 1e-6:
+            for t in range(r):
+                Q[nb, t] = v[t] / nv
+            basis[nb] = j
+            nb += 1
+            if nb == r:
+                break
+    if nb < r:
+        return fail
+    X = np.empty((cap, r))
+    Z = np.empty(cap, dtype=np.int64)
+    X2 = np.empty((cap, r))
+    Z2 = np.empty(cap, dtype=np.int64)
+    s = np.empty(cap)
+    W, prev, nrm = _scratch(6)
+    sub = np.empty((1, r - 1), dtype=np.int64)
+    done = np.int64(0)
+    for i in range(r):
+        done |= np.int64(1) << basis[i]
+    # Ray i of the simplicial polar: normal to the other r - 1 basis rays, inside ray i.
+    for i in range(r):
+        c = 0
+        for k in range(r):
+            if k != i:
+                sub[0, c] = basis[k]
+                c += 1
+        prev[:] = -1
+        _subset_normal6(V, sub, 0, prev, W, nrm)
+        sign = -1.0 if _dot(nrm, R, basis[i]) > 0.0 else 1.0
+        for t in range(r):
+            X[i, t] = sign * nrm[t]
+        Z[i] = done & ~(np.int64(1) << basis[i])
+    n = r
+    _unit_rows(X, n, r)
+    # (2) one ray at a time: keep the polar's rays on its side, join adjacent pairs across.
+    for j in range(N):
+        if (done >> j) & 1:
+            continue
+        bit = np.int64(1) << j
+        m = 0
+        for i in range(n):
+            s[i] = _dot(X[i], R, j)
+            if s[i] <= side_tol:
+                for t in range(r):
+                    X2[m, t] = X[i, t]
+                Z2[m] = Z[i] | bit if s[i] >= -side_tol else Z[i]
+                m += 1
+        for p in range(n):
+            if s[p] <= side_tol:
+                continue
+            for q in range(n):
+                if s[q] >= -side_tol:
+                    continue
+                common = Z[p] & Z[q]
+                if _popcount(common) < r - 2:
+                    continue
+                adjacent = True
+                for k in range(n):
+                    if k != p and k != q and (Z[k] & common) == common:
+                        adjacent = False
+                        break
+                if not adjacent:
+                    continue
+                if m >= cap:
+                    return fail
+                for t in range(r):
+                    X2[m, t] = s[p] * X[q, t] - s[q] * X[p, t]
+                Z2[m] = common | bit
+                m += 1
+        _unit_rows(X2, m, r)
+        X, X2 = X2, X
+        Z, Z2 = Z2, Z
+        n = m
+        done |= bit
+    # (3) each extreme ray a facet: the rays on it and r - 1 independent ones among them
+    # (its span: the rays on it in general position, else picked in index order).
+    A = np.empty((n, r))
+    spans = np.empty((n, r - 1), dtype=np.int64)
+    masks = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        mask = np.int64(0)
+        for j in range(N):
+            dot = _dot(X[i], R, j)
+            if dot > side_tol:
+                return fail
+            if dot >= -side_tol:
+                mask |= np.int64(1) << j
+        nb = 0
+        if _popcount(mask) == r - 1:
+            for j in range(N):
+                if (mask >> j) & 1:
+                    spans[i, nb] = j
+                    nb += 1
+        else:
+            for j in range(N):
+                if nb == r - 1:
+                    break
+                if not (mask >> j) & 1:
+                    continue
+                for t in range(r):
+                    v[t] = R[j, t]
+                for k in range(nb):
+                    d = 0.0
+                    for t in range(r):
+                        d += Q[k, t] * v[t]
+                    for t in range(r):
+                        v[t] -= d * Q[k, t]
+                nv = np.sqrt(_norm2(v))
+                if nv > 1e-6:
+                    for t in range(r):
+                        Q[nb, t] = v[t] / nv
+                    spans[i, nb] = j
+                    nb += 1
+        if nb < r - 1:
+            return fail
+    # The normals as cone_facets computes them: the cross product of the span (exact to
+    # rounding on its rays; the extreme rays carry the error of their combinations), the
+    # side test and the mask of that normal.
+    prev[:] = -1
+    for i in range(n):
+        _subset_normal6(V, spans, i, prev, W, nrm)
+        vol = np.sqrt(_norm2(nrm))
+        if not vol > rank_tol:
+            return fail
+        scale = (1.0 if _dot(nrm, X, i) > 0.0 else -1.0) / vol
+        for t in range(r):
+            A[i, t] = nrm[t] * scale
+        mask = np.int64(0)
+        for j in range(N):
+            dot = _dot(A[i], R, j)
+            if dot > side_tol:
+                return fail
+            if dot >= -side_tol:
+                mask |= np.int64(1) << j
+        masks[i] = mask
+    keep = _first_of_each(masks, np.ones(n, dtype=np.bool_))
+    return A[keep], spans[keep], masks[keep], True
+
+
+def cone_double_description(rays: np.ndarray, side_tol: float, rank_tol: float,
+                            cap: int = 1024
+                            ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    r"""
+    Return :func:`cone_facets`' ``(A, spans, masks)`` by the double description method.
+
+    The facets of ``C = cone{rays}`` (unit rows ``(N, 6)`` spanning R^6, ``C`` pointed) are
+    the extreme rays of its polar ``C* = {a : rays a <= 0}``. Starting from ``r``
+    independent rays, whose polar is simplicial (its extreme rays: the cross products of
+    each ``r - 1`` of them), the rays are added one at a time: ``a . ray <= side_tol`` keeps
+    an extreme ray of the polar, and each pair of adjacent extreme rays ``a_p``, ``a_q`` on
+    both sides of the new hyperplane (``s_p > 0 > s_q``) gives the new one
+    ``s_p a_q - s_q a_p`` on it (Motzkin et al. 1953; Fukuda & Prodon 1996). Adjacency is
+    combinatorial: the rays both are on number at least ``r - 2`` and no third extreme ray
+    is on all of them. The cost follows the output (a contact wrench cone of four legs has
+    tens of facets: ~48 for HyQ's stance), where :func:`cone_facets` tests every candidate
+    subset (2032 for four legs).
+
+    Each extreme ray is then re-derived as :func:`cone_facets` derives a facet: ``r - 1``
+    independent rays on it (within ``side_tol``; the rays on it in general position, else
+    picked in index order) are its span, whose cross product (volume above ``rank_tol``)
+    oriented outward is the unit normal ``a`` (exact to rounding on the span, where the
+    extreme ray carries the error of its combinations), no ray beyond ``side_tol`` of it,
+    the mask the rays within ``side_tol``; rows with the same mask are kept once. So the
+    output is :func:`cone_facets`' for the same rays and tolerances, up to the order of the
+    rows (the tests compare them). None (search the candidates instead) when the rays do not
+    span R^6, a step fails its test, or the extreme rays outgrow ``cap``.
+    """
+    R = np.ascontiguousarray(rays, dtype=float)
+    if R.ndim != 2 or R.shape[1] != 6 or R.shape[0] > MAX_BITS:
+        return None
+    A, spans, masks, ok = _cone_dd(R, float(side_tol), float(rank_tol), int(cap))
+    return (A, spans, masks) if ok else None
 
 
 @_jit
@@ -1502,6 +1720,7 @@ def compile_all() -> None:
     rays = g.T / np.linalg.norm(g.T, axis=1)[:, None]
     A, spans, masks = cone_facets(rays, subsets, 1e-9, 1e-9)
     cone_recheck(rays, spans, masks, 1e-9, 1e-9)
+    cone_double_description(rays, 1e-9, 1e-9)
     polar_hull(g[:2])
     g5 = g[:5]
     subsets4 = np.array(list(combinations(range(8), 4)), dtype=np.int64)

@@ -222,7 +222,9 @@ def _kernel_facets(rh: np.ndarray, subsets: np.ndarray, key: tuple, side_tol: fl
     Between control cycles the feet move little relative to the CoM and the facets keep
     their rays: :func:`awp_ros.geometry.kernels.cone_recheck` verifies the previous facets
     on the new rays (same incidences, every other ray strictly inside) and only when that
-    fails are all candidates searched again. ``key``: what fixes the candidates and the
+    fails are they searched again: by the double description method
+    (:func:`~awp_ros.geometry.kernels.cone_double_description`, ~4x faster than the
+    candidates on four legs), and by all candidates when that fails. ``key``: what fixes the candidates and the
     pyramids (stance count, sides, dimension, the unlifted rays). One entry per thread.
     """
     last = getattr(_LAST, 'facets', None)
@@ -231,7 +233,9 @@ def _kernel_facets(rh: np.ndarray, subsets: np.ndarray, key: tuple, side_tol: fl
         if A is not None:
             _LAST.reused = getattr(_LAST, 'reused', 0) + 1
             return A
-    A, spans, masks = kernels.cone_facets(rh, subsets, side_tol, rank_tol)
+    found = kernels.cone_double_description(rh, side_tol, rank_tol)
+    A, spans, masks = found if found is not None else \
+        kernels.cone_facets(rh, subsets, side_tol, rank_tol)
     _LAST.facets = (key, spans, masks)
     _LAST.searched = getattr(_LAST, 'searched', 0) + 1
     return A

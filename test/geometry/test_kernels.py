@@ -114,6 +114,80 @@ def _same_rows(A, B, tol=1e-9):
     return A.shape == B.shape and D.min(axis=1).max() <= tol and D.min(axis=0).max() <= tol
 
 
+def _lifted_cwc_rays(p, n, mu, sides):
+    rays = _cached_rays(np.ascontiguousarray(n).tobytes(), mu.tobytes(), sides)
+    lifted = lift_rays(p, rays).reshape(len(p) * sides, 6)
+    return lifted / np.linalg.norm(lifted, axis=1)[:, None]
+
+
+@pytest.mark.parametrize('seed', range(8))
+@pytest.mark.parametrize('K,sides', [(3, 4), (4, 4), (4, 3), (3, 6), (5, 4)])
+def test_cone_double_description_equals_the_candidate_search(seed, K, sides):
+    """Same facets, masks and valid spans as every candidate subset; flat-ground cases too."""
+    rng = np.random.default_rng(100 * seed + 10 * K + sides)
+    p, n, mu = _cwc_rays(rng, K, sides, tilt=(0.0, 0.2, 0.05, 0.0)[seed % 4])
+    if seed % 4 == 3:                      # flat ground, one mu: friction planes shared
+        mu[:] = 0.7
+    lifted = _lifted_cwc_rays(p, n, mu, sides)
+    subsets, _ = _candidates(K, sides, 6, (False,) * K)
+    A, spans, masks = kernels.cone_facets(lifted, subsets, 1e-9, 1e-9)
+    found = kernels.cone_double_description(lifted, 1e-9, 1e-9)
+    assert found is not None
+    A2, spans2, masks2 = found
+    assert _same_rows(A2, A, tol=1e-9)
+    assert sorted(masks2.tolist()) == sorted(masks.tolist())
+    s = lifted @ A2.T
+    assert s.max() <= 1e-9
+    for k in range(A2.shape[0]):
+        on = np.flatnonzero(np.abs(s[:, k]) <= 1e-9)
+        assert masks2[k] == sum(1 << int(j) for j in on)
+        assert set(spans2[k]) <= set(on.tolist())
+        assert np.linalg.matrix_rank(lifted[spans2[k]], tol=1e-7) == 5
+
+
+def test_cone_double_description_matches_qhull():
+    """The facets through the apex of conv(0, rays) by qhull, an independent hull."""
+    for seed in range(5):
+        rng = np.random.default_rng(seed)
+        p, n, mu = _cwc_rays(rng, 4, 4, tilt=0.1)
+        lifted = _lifted_cwc_rays(p, n, mu, 4)
+        A, _, _ = kernels.cone_double_description(lifted, 1e-9, 1e-9)
+        hull = ConvexHull(np.vstack([np.zeros(6), lifted]))
+        eq = hull.equations[np.abs(hull.equations[:, -1]) < 1e-10, :-1]
+        ref = np.unique(np.round(eq / np.linalg.norm(eq, axis=1)[:, None], 7), axis=0)
+        assert _same_rows(np.round(A, 7), ref, tol=2e-7)
+
+
+def test_cone_double_description_refuses_rays_short_of_full_rank():
+    rng = np.random.default_rng(3)
+    flat = rng.normal(size=(12, 6))
+    flat[:, 5] = 0.0
+    flat /= np.linalg.norm(flat, axis=1)[:, None]
+    assert kernels.cone_double_description(flat, 1e-9, 1e-9) is None
+
+
+def test_cone_recheck_takes_the_spans_of_the_double_description():
+    """Along a walk, the recheck of its facets equals a full search, as often as the search's."""
+    rng = np.random.default_rng(12)
+    p, n, mu = _cwc_rays(rng)
+    subsets, _ = _candidates(4, 4, 6, (False,) * 4)
+    reused = {'search': 0, 'double description': 0}
+    last = {}
+    for _ in range(200):
+        p = p + 0.004 * rng.normal(size=p.shape)
+        lifted = _lifted_cwc_rays(p, n, mu, 4)
+        full, spans, masks = kernels.cone_facets(lifted, subsets, 1e-9, 1e-9)
+        for name, (s, m) in last.items():
+            again = kernels.cone_recheck(lifted, s, m, 1e-9, 1e-9)
+            if again is not None:
+                reused[name] += 1
+                assert _same_rows(again, full)
+        A, spans2, masks2 = kernels.cone_double_description(lifted, 1e-9, 1e-9)
+        assert _same_rows(A, full)
+        last = {'search': (spans, masks), 'double description': (spans2, masks2)}
+    assert reused['double description'] == reused['search'] > 20
+
+
 def test_cone_recheck_equals_full_computation_along_a_random_walk():
     """The reused facets equal a full search at every step; structure changes are caught."""
     rng = np.random.default_rng(11)
