@@ -223,9 +223,10 @@ def _kernel_facets(rh: np.ndarray, subsets: np.ndarray, key: tuple, side_tol: fl
     their rays: :func:`awp_ros.geometry.kernels.cone_recheck` verifies the previous facets
     on the new rays (same incidences, every other ray strictly inside) and only when that
     fails are they searched again: by the double description method
-    (:func:`~awp_ros.geometry.kernels.cone_double_description`, ~4x faster than the
-    candidates on four legs), and by all candidates when that fails. ``key``: what fixes the candidates and the
-    pyramids (stance count, sides, dimension, the unlifted rays). One entry per thread.
+    (:func:`~awp_ros.geometry.kernels.cone_double_description`, ~3x faster than the
+    candidates on four legs), and by all candidates when that fails. ``key``: what fixes
+    the candidates and the pyramids (stance count, sides, dimension, the unlifted rays).
+    One entry per thread.
     """
     last = getattr(_LAST, 'facets', None)
     if last is not None and last[0] == key:
