@@ -900,6 +900,65 @@ def cone_double_description(rays: np.ndarray, side_tol: float, rank_tol: float,
     return (A, spans, masks) if ok else None
 
 
+@_jit(inline=True)
+def _largest_gram_eigenvalue(a00, a01, a02, a10, a11, a12, a20, a21, a22):
+    """
+    Return the largest eigenvalue of ``A^T A`` (``sigma_max(A)^2``) of a 3x3 matrix.
+
+    The trigonometric solution of the symmetric 3x3 eigenproblem (Smith 1961): accurate
+    to rounding relative to itself whatever the other eigenvalues.
+    """
+    g00 = a00 * a00 + a10 * a10 + a20 * a20
+    g11 = a01 * a01 + a11 * a11 + a21 * a21
+    g22 = a02 * a02 + a12 * a12 + a22 * a22
+    g01 = a00 * a01 + a10 * a11 + a20 * a21
+    g02 = a00 * a02 + a10 * a12 + a20 * a22
+    g12 = a01 * a02 + a11 * a12 + a21 * a22
+    q = (g00 + g11 + g22) / 3.0
+    p2 = ((g00 - q) ** 2 + (g11 - q) ** 2 + (g22 - q) ** 2
+          + 2.0 * (g01 * g01 + g02 * g02 + g12 * g12))
+    if not p2 > 0.0:
+        return q                        # G = q I
+    p = np.sqrt(p2 / 6.0)
+    b00, b11, b22 = (g00 - q) / p, (g11 - q) / p, (g22 - q) / p
+    b01, b02, b12 = g01 / p, g02 / p, g12 / p
+    half_det = 0.5 * (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02)
+                      + b02 * (b01 * b12 - b11 * b02))
+    return q + 2.0 * p * np.cos(np.arccos(min(1.0, max(-1.0, half_det))) / 3.0)
+
+
+@_jit(inline=True)
+def _sigma_ratio3(M):
+    r"""
+    Return ``sigma_min / sigma_max`` of a 3x3 matrix ``M`` in closed form (no SVD call).
+
+    .. math:: \frac{\sigma_3}{\sigma_1} = \frac{|\det M|}{\sigma_1(M)\, \sigma_1(\mathrm{cof} M)}
+
+    since ``cof M = det(M) M^{-T}`` has the singular values ``sigma_i sigma_j`` (largest
+    ``sigma_1 sigma_2``). The two largest singular values come from
+    :func:`_largest_gram_eigenvalue`, ``det`` from the cofactors. Against LAPACK's SVD (a
+    call per leg cost ~10 us a cycle for four legs; the tests compare them): relative error
+    below 1e-8 for ratios above 1e-3 unless ``sigma_2 ~ sigma_3`` (up to 5e-6 there: the
+    cofactors' rounding meets a double top eigenvalue), absolute error below 2e-9, and the
+    same side of ``singular_rtol`` (1e-9) on 40000 matrices with ratios 1e-14 .. 1e-6.
+    """
+    c00 = M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]
+    c01 = M[1, 2] * M[2, 0] - M[1, 0] * M[2, 2]
+    c02 = M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]
+    c10 = M[0, 2] * M[2, 1] - M[0, 1] * M[2, 2]
+    c11 = M[0, 0] * M[2, 2] - M[0, 2] * M[2, 0]
+    c12 = M[0, 1] * M[2, 0] - M[0, 0] * M[2, 1]
+    c20 = M[0, 1] * M[1, 2] - M[0, 2] * M[1, 1]
+    c21 = M[0, 2] * M[1, 0] - M[0, 0] * M[1, 2]
+    c22 = M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0]
+    det = M[0, 0] * c00 + M[0, 1] * c01 + M[0, 2] * c02
+    big = _largest_gram_eigenvalue(M[0, 0], M[0, 1], M[0, 2], M[1, 0], M[1, 1], M[1, 2],
+                                   M[2, 0], M[2, 1], M[2, 2])
+    cof = _largest_gram_eigenvalue(c00, c01, c02, c10, c11, c12, c20, c21, c22)
+    if not (big > 0.0 and cof > 0.0):
+        return 0.0
+    return min(1.0, abs(det) / np.sqrt(big * cof))
+
 @_jit
 def _parallelepipeds(J, bias, tau_min, tau_max, singular_rtol):
     K = J.shape[0]
@@ -910,10 +969,9 @@ def _parallelepipeds(J, bias, tau_min, tau_max, singular_rtol):
     b = np.empty((K, 6))
     ratio = np.empty(K)
     for k in range(K):
-        sv = np.linalg.svd(np.ascontiguousarray(J[k]))[1]
-        ratio[k] = sv[2] / max(sv[0], 2.2250738585072014e-308)
-        # J^-T by cofactors: (J^T)^-1 = adj(J^T) / det = cof(J) / det, cof(J)_ij = C_ij
         M = J[k]
+        ratio[k] = _sigma_ratio3(M)
+        # J^-T by cofactors: (J^T)^-1 = adj(J^T) / det = cof(J) / det, cof(J)_ij = C_ij
         c00 = M[1, 1] * M[2, 2] - M[1, 2] * M[2, 1]
         c01 = M[1, 2] * M[2, 0] - M[1, 0] * M[2, 2]
         c02 = M[1, 0] * M[2, 1] - M[1, 1] * M[2, 0]

@@ -248,6 +248,32 @@ def test_contact_wrench_cone_with_reuse_equals_the_numpy_code_on_a_walk():
         assert _same_rows(fast.A, slow.A)
 
 
+def test_sigma_ratio_in_closed_form_equals_the_svd():
+    """sigma_min / sigma_max of 3x3 matrices: LAPACK's SVD is the reference."""
+    import numba
+    ratio = numba.njit(lambda M: kernels._sigma_ratio3(M))
+    rng = np.random.default_rng(21)
+    for i in range(4000):
+        M = rng.normal(size=(3, 3)) * 10.0 ** rng.uniform(-3, 3)
+        u, s, vt = np.linalg.svd(M)
+        kind = i % 4
+        if kind == 1:                               # one small singular value
+            s[2] = s[0] * 10.0 ** rng.uniform(-14, -1)
+        elif kind == 2:                             # two equal small ones
+            s[1] = s[2] = s[0] * 10.0 ** rng.uniform(-6, 0)
+        elif kind == 3:                             # two equal large ones
+            s[1] = s[0] * (1.0 - 10.0 ** rng.uniform(-12, -1))
+        M = (u * s) @ vt
+        sv = np.linalg.svd(M, compute_uv=False)
+        ref, got = sv[2] / sv[0], ratio(M)
+        assert abs(got - ref) <= 2e-9
+        assert (got > 1e-9) == (ref > 1e-9)
+        if ref > 1e-3:
+            assert abs(got - ref) <= (1e-5 if kind == 2 else 1e-8) * ref
+    assert ratio(np.eye(3)) == 1.0 and ratio(np.zeros((3, 3))) == 0.0
+    assert ratio(np.diag([1.0, 1.0, 0.0])) == 0.0 and ratio(np.diag([2.0, 1.0, 0.5])) == 0.25
+
+
 def test_parallelepipeds_equal_the_numpy_reference():
     from awp_ros.wrench.force_polytope import parallelepipeds
     rng = np.random.default_rng(5)
