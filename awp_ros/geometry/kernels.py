@@ -959,6 +959,7 @@ def _sigma_ratio3(M):
         return 0.0
     return min(1.0, abs(det) / np.sqrt(big * cof))
 
+
 @_jit
 def _parallelepipeds(J, bias, tau_min, tau_max, singular_rtol):
     K = J.shape[0]
