@@ -95,7 +95,7 @@ from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.contact_source import EffortContacts
 from awp_ros.ros.conversions import (report_msg, robot_state_from_msgs, stamp_to_ns,
                                      wrench_polytope_msg)
-from awp_ros.ros.pipeline import MAX_REASON_CHARS, unevaluated_report
+from awp_ros.ros.pipeline import shorten_reason, unevaluated_report
 from awp_ros.runtime import tune_process
 
 __all__ = ['EvaluateService', 'MAX_RESTARTS', 'NICE', 'evaluate_request', 'lower_thread_priority',
@@ -207,8 +207,7 @@ def _evaluate_one(evaluator: FeasibilityEvaluator, p: PipelineParams, js, contac
     except Exception as exc:  # noqa: BLE001 -- every state gets its report
         report = unevaluated_report(js, p.wrench_frame_id, _S.STATUS_ERROR,
                                     f'internal error {type(exc).__name__}: {exc}')
-    if len(report.status_message) > MAX_REASON_CHARS:
-        report.status_message = report.status_message[:MAX_REASON_CHARS - 3] + '...'
+    report.status_message = shorten_reason(report.status_message)
     report.compute_time = time.perf_counter() - t0
     return report, polytopes
 

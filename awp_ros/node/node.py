@@ -147,7 +147,6 @@ class AwpNode(Node):
         self._last_contacts: ContactState | None = None     # received while no model
         self.diagnostics.model_error = self.model_error
         self.diagnostics.config_errors = self.parameters.config_errors
-        self._wall = Clock(clock_type=ClockType.SYSTEM_TIME)
         self._limits_declared = self.pipeline is not None
         self._create_interfaces(p)
         self._log_startup(p)
@@ -367,8 +366,7 @@ class AwpNode(Node):
             self._limits_declared = True
         cycle = self.pipeline.on_joint_state(msg, missing=missing or 0,
                                              queue_delay_s=_queue_delay(info))
-        report = cycle.report
-        self.pub_report.publish(report)
+        self.pub_report.publish(cycle.report_bytes)
         if cycle.result is not None:
             for kind, pub in self.pub_wrench.items():
                 if pub.get_subscription_count():
@@ -380,8 +378,8 @@ class AwpNode(Node):
                     self._publish_output(pub, name, getattr(cycle, name))
         if cycle.markers_due and self.pub_markers.get_subscription_count():
             self._publish_markers(cycle)
-        self.diagnostics.evaluated(report.status, report.compute_time, self._latency(msg),
-                                   report.status_message,
+        self.diagnostics.evaluated(cycle.status, cycle.compute_time, self._latency(msg),
+                                   cycle.status_message,
                                    None if cycle.result is None else len(cycle.result.stance))
 
     def _publish_markers(self, cycle) -> None:
@@ -425,7 +423,8 @@ class AwpNode(Node):
 
     def _latency(self, msg: JointState) -> float | None:
         """Return wall time now minus the joint-state stamp [s], None when not plausible."""
-        latency = (self._wall.now().nanoseconds - stamp_to_ns(msg.header.stamp)) * 1e-9
+        # The system clock (time_ns: what Clock(SYSTEM_TIME).now() reads, ~10x cheaper).
+        latency = (time.time_ns() - stamp_to_ns(msg.header.stamp)) * 1e-9
         return latency if 0.0 <= latency < 60.0 else None
 
     def _publish_output(self, pub, name: str, build) -> None:

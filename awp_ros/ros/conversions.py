@@ -26,8 +26,6 @@ from __future__ import annotations
 
 from array import array
 from collections.abc import Collection, Sequence
-from copy import copy
-from functools import lru_cache
 import math
 
 from awp_ros_msgs.msg import ContactState, FeasibilityReport, LegPolytope, LegPolytopes
@@ -36,6 +34,7 @@ from awp_ros_msgs.msg import WrenchPolytope
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Point32, PolygonStamped
 import numpy as np
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Header
 
@@ -43,6 +42,7 @@ from awp_ros.errors import InputError
 from awp_ros.evaluation.result import AXES, FeasibilityResult, WrenchSetResult
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.robot.state import RobotState
+from awp_ros.ros.cdr import layout, report_status
 from awp_ros.wrench.com_region import ComRegion
 
 __all__ = [
@@ -50,10 +50,11 @@ __all__ = [
     'STATUS_NAMES',
     'error_report',
     'leg_polytopes_msg',
-    'new_message',
     'polytope_from_msg',
     'polytope_to_msg',
     'region_polygon_msg',
+    'report_bytes',
+    'report_status',
     'report_msg',
     'robot_state_from_msgs',
     'stamp_to_ns',
@@ -71,7 +72,8 @@ STATUS_NAMES = {
     FeasibilityReport.STATUS_ERROR: 'error',
 }
 
-_NAN6 = np.full(6, np.nan)
+#: The CDR layout of reports (:func:`report_bytes`).
+_REPORT = layout(FeasibilityReport)
 
 
 def _shorten(items: Sequence, limit: int = 8) -> str:
@@ -208,83 +210,35 @@ def leg_polytopes_msg(header: Header, result: FeasibilityResult) -> LegPolytopes
     return msg
 
 
-# -- fresh messages ------------------------------------------------------------------------
-
-
-def new_message(cls: type):
-    """
-    Return a message of generated class ``cls`` with every field at its default.
-
-    Equal to ``cls()``, built from a default instance made once: immutable field values are
-    shared, arrays and lists copied, nested messages made the same way. The generated
-    ``__init__`` builds every nested message through its property setters (a
-    ``FeasibilityReport()`` costs ~27 us; this, ~5 us), once per joint state.
-    """
-    msg = cls.__new__(cls)
-    shared, copied, nested = _default_fields(cls)
-    for slot, value in shared:
-        setattr(msg, slot, value)
-    for slot, value in copied:
-        setattr(msg, slot, copy(value))
-    for slot, value in nested:
-        setattr(msg, slot, new_message(value))
-    return msg
-
-
-@lru_cache(maxsize=None)
-def _default_fields(cls: type) -> tuple[tuple, tuple, tuple]:
-    """
-    Return the slots of ``cls()`` as ``(shared, copied, nested)`` (see :func:`new_message`).
-
-    Each a tuple of ``(slot, value)``: immutable values (numbers, strings), arrays and lists
-    (copied per message), nested messages (the value is their class).
-    """
-    default = cls()
-    shared, copied, nested = [], [], []
-    for slot in cls.__slots__:
-        value = getattr(default, slot)
-        if hasattr(type(value), '_fields_and_field_types'):
-            nested.append((slot, type(value)))
-        elif isinstance(value, (np.ndarray, list, array)):
-            copied.append((slot, value))
-        else:
-            shared.append((slot, value))
-    return tuple(shared), tuple(copied), tuple(nested)
-
-
 # -- reports -------------------------------------------------------------------------------
 
 
-def _set_fields(msg: FeasibilityReport, name: str, s: WrenchSetResult | None) -> None:
-    """Copy one set's margin, witness, dimension, residual and feasibility into the report."""
+_NAN6_LIST = [math.nan] * 6
+
+
+def _set_values(s: WrenchSetResult | None) -> tuple:
+    """Return one set's (margin, margin_in_hull, normal, dimension, residual, feasible)."""
     if s is None:
-        setattr(msg, f'{name}_margin', math.nan)
-        setattr(msg, f'{name}_margin_in_hull', math.nan)
-        setattr(msg, f'{name}_normal', _NAN6.copy())
-        setattr(msg, f'{name}_affine_residual', math.nan)
-        setattr(msg, f'{name}_feasible', False)
-        return
-    setattr(msg, f'{name}_margin', float(s.margin))
-    setattr(msg, f'{name}_margin_in_hull', float(s.margin_in_hull))
-    setattr(msg, f'{name}_normal', np.asarray(s.normal, dtype=np.float64))
-    setattr(msg, f'{name}_dimension', max(int(s.dimension), 0))
-    setattr(msg, f'{name}_affine_residual', float(s.affine_residual))
-    setattr(msg, f'{name}_feasible', bool(s.feasible))
+        return math.nan, math.nan, _NAN6_LIST, 0, math.nan, False
+    return (float(s.margin), float(s.margin_in_hull), np.asarray(s.normal, dtype=float).tolist(),
+            max(int(s.dimension), 0), float(s.affine_residual), bool(s.feasible))
 
 
-def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float,
-               fws: WrenchSetResult | None = None, fws_stamp: Time | None = None,
-               status: int | None = None, status_message: str | None = None,
-               fws_pending: bool = False) -> FeasibilityReport:
+def report_bytes(header: Header, result: FeasibilityResult | None, *, compute_time: float,
+                 fws: WrenchSetResult | None = None, fws_stamp: Time | None = None,
+                 status: int | None = None, status_message: str | None = None,
+                 fws_pending: bool = False) -> bytes:
     """
-    Return the ``FeasibilityReport`` of an evaluation.
+    Return the serialized ``FeasibilityReport`` of an evaluation (CDR, what is published).
 
-    ``feasible`` is ``fwp_feasible and fws_feasible``: equal to ``fws_feasible`` when the FWS
-    was computed for this message (FWS is a subset of FWP) and never true when the current
-    FWP excludes the wrench while an older FWS admitted it.
+    The one place where a report's fields are set; :func:`report_msg` is its message and
+    :func:`error_report` the report of a message that was not evaluated (``result`` None:
+    margins NaN, not feasible). ``feasible`` is ``fwp_feasible and fws_feasible``: equal to
+    ``fws_feasible`` when the FWS was computed for this message (FWS is a subset of FWP)
+    and never true when the current FWP excludes the wrench while an older FWS admitted it.
 
     :param header: stamp of the answered joint state; frame_id the wrench frame.
-    :param result: the evaluation.
+    :param result: the evaluation, or None (not evaluated).
     :param compute_time: wall time of the evaluation [s].
     :param fws: the latest FWS result (default ``result.fws``); None leaves the ``fws_*``
         fields NaN / false.
@@ -294,61 +248,74 @@ def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float
     :param fws_pending: no FWS of this stance yet, it is being computed (``fws_lag_s``):
         ``feasible`` is then ``fwp_feasible`` (``fws`` must be None).
     """
-    msg = new_message(FeasibilityReport)
-    msg.header = header
-    if status is None:
-        status = FeasibilityReport.STATUS_WARNING if result.warnings \
-            else FeasibilityReport.STATUS_OK
-    msg.status = status
-    msg.status_message = '; '.join(result.warnings) if status_message is None \
-        else status_message
-    msg.stance_feet = list(result.stance)
-    msg.motion = FeasibilityReport.MOTION_MEASURED if result.motion == 'measured' \
-        else FeasibilityReport.MOTION_QUASI_STATIC
-    msg.mass = float(result.mass)
-    msg.com.x, msg.com.y, msg.com.z = (float(c) for c in result.com)
-    fx, fy, fz, tx, ty, tz = (float(c) for c in result.wrench)
-    msg.wrench.force.x, msg.wrench.force.y, msg.wrench.force.z = fx, fy, fz
-    msg.wrench.torque.x, msg.wrench.torque.y, msg.wrench.torque.z = tx, ty, tz
-    fws = result.fws if fws is None else fws
-    _set_fields(msg, 'awp', result.awp)
-    _set_fields(msg, 'fwp', result.fwp)
-    _set_fields(msg, 'fws', fws)
-    if fws is not None and fws.directional is not None:
-        d = fws.directional
-        msg.fws_directional_plus = np.array([d[a][0] for a in AXES], dtype=np.float64)
-        msg.fws_directional_minus = np.array([d[a][1] for a in AXES], dtype=np.float64)
+    stamp = header.stamp
+    if result is None:
+        head = (FeasibilityReport.STATUS_ERROR if status is None else status,
+                (status_message or '').encode(), [], FeasibilityReport.MOTION_QUASI_STATIC,
+                math.nan, math.nan, math.nan, math.nan, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        sets = (_set_values(None),) * 3
+        directional = (_NAN6_LIST, _NAN6_LIST, 0, 0)
+        feasible, regions, measured = False, (math.nan,) * 4, None
     else:
-        msg.fws_directional_plus = _NAN6.copy()
-        msg.fws_directional_minus = _NAN6.copy()
-    if fws is not None:
-        msg.fws_stamp = header.stamp if fws_stamp is None else fws_stamp
-    msg.feasible = bool(msg.fwp_feasible and (msg.fws_feasible or fws_pending and fws is None))
-    # The regions are this cycle's: an FWS of an earlier joint state does not give them.
-    fresh = fws is not None and (fws_stamp is None or fws_stamp == header.stamp)
-    _set_regions(msg, result, fws if fresh else None)
-    _set_measured_forces(msg, result.measured)
-    msg.compute_time = float(compute_time)
-    return msg
+        if status is None:
+            status = FeasibilityReport.STATUS_WARNING if result.warnings \
+                else FeasibilityReport.STATUS_OK
+        if status_message is None:
+            status_message = '; '.join(result.warnings)
+        head = (status, status_message.encode(), [f.encode() for f in result.stance],
+                FeasibilityReport.MOTION_MEASURED if result.motion == 'measured'
+                else FeasibilityReport.MOTION_QUASI_STATIC, float(result.mass),
+                *np.asarray(result.com, dtype=float).tolist(),
+                *np.asarray(result.wrench, dtype=float).tolist())
+        fws = result.fws if fws is None else fws
+        sets = (_set_values(result.awp), _set_values(result.fwp), _set_values(fws))
+        if fws is not None and fws.directional is not None:
+            d = fws.directional
+            plus, minus = [float(d[a][0]) for a in AXES], [float(d[a][1]) for a in AXES]
+        else:
+            plus, minus = _NAN6_LIST, _NAN6_LIST
+        at = stamp if fws_stamp is None else fws_stamp
+        directional = (plus, minus) + ((at.sec, at.nanosec) if fws is not None else (0, 0))
+        feasible = bool(sets[1][5] and (sets[2][5] or fws_pending and fws is None))
+        # The regions are this cycle's: an FWS of an earlier joint state does not give them.
+        fresh = fws is not None and (fws_stamp is None or fws_stamp == stamp)
+        regions = _region_margins(result, fws if fresh else None)
+        measured = result.measured
+    if measured is None:
+        tail = (False, b'', math.nan, math.nan) + (math.nan,) * 6
+    else:
+        tail = (True, measured.slip_foot.encode(), float(measured.slip_margin),
+                float(measured.torque_ratio),
+                *np.asarray(measured.external_wrench, dtype=float).tolist())
+    return _REPORT.pack((stamp.sec, stamp.nanosec, header.frame_id.encode(), *head,
+                         *(s[i] for i in range(6) for s in sets), feasible, *directional,
+                         *regions, *tail, float(compute_time)))
 
 
-def _set_regions(msg: FeasibilityReport, result: FeasibilityResult | None,
-                 fws: WrenchSetResult | None = None) -> None:
+def report_msg(header: Header, result: FeasibilityResult, *, compute_time: float,
+               fws: WrenchSetResult | None = None, fws_stamp: Time | None = None,
+               status: int | None = None, status_message: str | None = None,
+               fws_pending: bool = False) -> FeasibilityReport:
+    """Return the ``FeasibilityReport`` message of :func:`report_bytes` (same arguments)."""
+    return deserialize_message(report_bytes(
+        header, result, compute_time=compute_time, fws=fws, fws_stamp=fws_stamp,
+        status=status, status_message=status_message, fws_pending=fws_pending),
+        FeasibilityReport)
+
+
+def _region_margins(result: FeasibilityResult, fws: WrenchSetResult | None = None
+                    ) -> tuple[float, float, float, float]:
     """
-    Copy the CoM regions' margins [m] (NaN when empty or not computed).
+    Return the feasible, support and FWP regions' margins and the capture point's [m].
 
-    The support and FWP regions come from ``result``, the feasible region and the capture
-    point's margin too when it has them (every cycle, by projection), else from ``fws``
-    (given only when it was computed for this joint state; else NaN).
+    NaN when empty or not computed. The support and FWP regions come from ``result``, the
+    feasible region and the capture point's margin too when it has them (every cycle, by
+    projection), else from ``fws`` (given only when it was computed for this joint state).
     """
-    feasible, capture = (None, math.nan) if result is None else \
-        result.feasible_region_with(fws)
-    regions = {'feasible_region': feasible,
-               'support_region': None if result is None else result.support_region,
-               'fwp_region': None if result is None else result.fwp.region}
-    for name, region in regions.items():
-        setattr(msg, f'{name}_margin', math.nan if region is None else float(region.margin))
-    msg.capture_point_margin = float(capture)
+    feasible, capture = result.feasible_region_with(fws)
+    return tuple(math.nan if region is None else float(region.margin)
+                 for region in (feasible, result.support_region, result.fwp.region)) \
+        + (float(capture),)
 
 
 def region_polygon_msg(header: Header, region: ComRegion | None) -> PolygonStamped:
@@ -369,23 +336,6 @@ def region_polygon_msg(header: Header, region: ComRegion | None) -> PolygonStamp
     return msg
 
 
-def _set_measured_forces(msg: FeasibilityReport, measured) -> None:
-    """Fill the measured-force summary (NaN / empty without efforts)."""
-    msg.measured_forces = measured is not None
-    if measured is None:
-        msg.slip_foot = ''
-        msg.slip_margin = math.nan
-        msg.torque_ratio = math.nan
-        w = (math.nan,) * 6
-    else:
-        msg.slip_foot = measured.slip_foot
-        msg.slip_margin = float(measured.slip_margin)
-        msg.torque_ratio = float(measured.torque_ratio)
-        w = tuple(float(c) for c in measured.external_wrench)
-    f, t = msg.external_wrench.force, msg.external_wrench.torque
-    f.x, f.y, f.z, t.x, t.y, t.z = w
-
-
 def error_report(header: Header, status: int, reason: str, *, compute_time: float = 0.0
                  ) -> FeasibilityReport:
     """
@@ -394,21 +344,8 @@ def error_report(header: Header, status: int, reason: str, *, compute_time: floa
     :param status: ``STATUS_INVALID_INPUT``, ``STATUS_STALE_INPUT`` or ``STATUS_ERROR``.
     :param reason: human-readable reason (names the bad value).
     """
-    msg = new_message(FeasibilityReport)
-    msg.header = header
-    msg.status = status
-    msg.status_message = reason
-    for name in ('awp', 'fwp', 'fws'):
-        _set_fields(msg, name, None)
-    msg.fws_directional_plus = _NAN6.copy()
-    msg.fws_directional_minus = _NAN6.copy()
-    msg.feasible = False
-    msg.mass = math.nan
-    msg.com.x = msg.com.y = msg.com.z = math.nan
-    _set_regions(msg, None)
-    _set_measured_forces(msg, None)
-    msg.compute_time = float(compute_time)
-    return msg
+    return report_msg(header, None, compute_time=compute_time, status=status,
+                      status_message=reason)
 
 
 # -- inputs --------------------------------------------------------------------------------

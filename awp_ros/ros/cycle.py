@@ -7,11 +7,13 @@ from dataclasses import replace
 from awp_ros_msgs.msg import FeasibilityReport, LegPolytopes, WrenchPolytope
 from geometry_msgs.msg import PolygonStamped
 import numpy as np
+from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Header
 from visualization_msgs.msg import MarkerArray
 
 from awp_ros.evaluation.result import FeasibilityResult, WrenchSetResult
-from awp_ros.ros.conversions import leg_polytopes_msg, region_polygon_msg, wrench_polytope_msg
+from awp_ros.ros.conversions import (leg_polytopes_msg, region_polygon_msg, report_status,
+                                     wrench_polytope_msg)
 from awp_ros.ros.markers import build_markers, error_markers, MarkerStyle
 
 __all__ = ['Cycle', 'OUTPUTS']
@@ -26,7 +28,10 @@ class Cycle:
     The outputs answering one joint-state message (built on demand, then cached).
 
     :ivar header: stamp of the joint state, frame_id ``wrench_frame_id``.
-    :ivar report: the FeasibilityReport (always).
+    :ivar report: the FeasibilityReport (always); :attr:`report_bytes` the same serialized
+        (what the node publishes). An evaluated joint state's report is made as bytes and
+        its message only when read (replay, demo), a report of an error as a message.
+    :ivar status, status_message, compute_time: the report's fields of those names.
     :ivar result: the evaluation, or None when the message was not evaluated.
     :ivar fws_computed: whether the FWS was computed for this message.
     :ivar markers_due: whether markers are published for this message.
@@ -35,13 +40,19 @@ class Cycle:
     cycle (``fws_lag_s``): :meth:`fws` publishes it, stamped with its own joint state's stamp.
     """
 
-    def __init__(self, header: Header, report: FeasibilityReport,
+    def __init__(self, header: Header, report: FeasibilityReport | bytes,
                  result: FeasibilityResult | None, *, fws_computed: bool, markers_due: bool,
                  marker_header: Header, marker_frame: tuple, style: MarkerStyle,
                  reference_point: np.ndarray, latest_fws: WrenchSetResult | None,
                  pyramid_sides: int, released_fws: tuple | None = None) -> None:
         self.header = header
-        self.report = report
+        if isinstance(report, bytes):
+            self._report, self._report_bytes = None, report
+            self.status, self.status_message, self.compute_time = report_status(report)
+        else:
+            self._report, self._report_bytes = report, None
+            self.status, self.status_message = report.status, report.status_message
+            self.compute_time = report.compute_time
         self.result = result
         self.fws_computed = fws_computed
         self.markers_due = markers_due
@@ -61,6 +72,20 @@ class Cycle:
                    marker_header=report.header, marker_frame=(np.eye(3), np.zeros(3)),
                    style=MarkerStyle(), reference_point=np.zeros(3), latest_fws=None,
                    pyramid_sides=4)
+
+    @property
+    def report(self) -> FeasibilityReport:
+        """Return the report message (deserialized on first use when made as bytes)."""
+        if self._report is None:
+            self._report = deserialize_message(self._report_bytes, FeasibilityReport)
+        return self._report
+
+    @property
+    def report_bytes(self) -> bytes:
+        """Return the serialized report (serialized on first use when made as a message)."""
+        if self._report_bytes is None:
+            self._report_bytes = serialize_message(self._report)
+        return self._report_bytes
 
     def _cached(self, key: str, available: bool, build, *args):
         """Return ``build(self.header, *args)``, built once; None when not ``available``."""
@@ -139,7 +164,7 @@ class Cycle:
         sets whose margins only label the markers travel without their polytopes.
         """
         if self.result is None:
-            return error_markers, (self._marker_header, self.report.status_message), {
+            return error_markers, (self._marker_header, self.status_message), {
                 'style': self._style}
         r = self.result
         slim = replace(r, awp=replace(r.awp, polytope=None), cwc=None,
@@ -148,7 +173,7 @@ class Cycle:
         R, t = self._marker_frame
         return build_markers, (slim, self._marker_header), {
             'style': self._style, 'fws': fws, 'pyramid_sides': self._sides, 'rotation': R,
-            'translation': t, 'status_text': self.report.status_message}
+            'translation': t, 'status_text': self.status_message}
 
     def messages(self) -> dict:
         """Return every output of this message: topic name (``OUTPUTS``) -> message."""

@@ -69,13 +69,14 @@ from awp_ros.geometry.linalg import identity, quaternion_matrix
 from awp_ros.robot.config import check_keys, load_config, RobotConfig
 from awp_ros.robot.parameters import PipelineParams, ros_parameters
 from awp_ros.ros.contact_source import EffortContacts
-from awp_ros.ros.conversions import error_report, report_msg, robot_state_from_msgs, stamp_to_ns
+from awp_ros.ros.conversions import (error_report, report_bytes, report_msg,
+                                     robot_state_from_msgs, stamp_to_ns)
 from awp_ros.ros.cycle import Cycle
 from awp_ros.ros.input_buffer import InputBuffer, stale_reason
 from awp_ros.ros.joint_merge import JointMerger
 from awp_ros.ros.markers import MarkerStyle
 
-__all__ = ['MAX_REASON_CHARS', 'Pipeline', 'check_marker_frame', 'loss_note',
+__all__ = ['MAX_REASON_CHARS', 'Pipeline', 'check_marker_frame', 'loss_note', 'shorten_reason',
            'unevaluated_report']
 
 _S = FeasibilityReport
@@ -424,11 +425,7 @@ class Pipeline:
                 self._evaluated.append((msg.header.stamp, result, self._latest_fws,
                                         self._latest_fws_stamp))
                 warnings = notes + result.warnings
-                status = _S.STATUS_WARNING if warnings else _S.STATUS_OK
-                report = report_msg(header, result, compute_time=0.0, fws=self._latest_fws,
-                                    fws_stamp=self._latest_fws_stamp, status=status,
-                                    status_message='; '.join(warnings),
-                                    fws_pending=self._latest_fws is None)
+                report = None                   # made as bytes below, once timed
         except InputError as exc:
             report = error_report(header, _S.STATUS_INVALID_INPUT, '; '.join(notes + [str(exc)]))
             result = None
@@ -439,9 +436,16 @@ class Pipeline:
             report = error_report(header, _S.STATUS_ERROR,
                                   f'internal error {type(exc).__name__}: {exc}')
             result = None
-        if len(report.status_message) > MAX_REASON_CHARS:
-            report.status_message = report.status_message[:MAX_REASON_CHARS - 3] + '...'
-        report.compute_time = time.perf_counter() - t0
+        if report is None:
+            message = shorten_reason('; '.join(warnings))
+            report = report_bytes(header, result, compute_time=time.perf_counter() - t0,
+                                  fws=self._latest_fws, fws_stamp=self._latest_fws_stamp,
+                                  status=_S.STATUS_WARNING if message else _S.STATUS_OK,
+                                  status_message=message,
+                                  fws_pending=self._latest_fws is None)
+        else:
+            report.status_message = shorten_reason(report.status_message)
+            report.compute_time = time.perf_counter() - t0
         com = np.zeros(3) if result is None else result.com
         marker_header = Header(stamp=msg.header.stamp,
                                frame_id=p.marker_frame_id or p.wrench_frame_id)
@@ -543,6 +547,13 @@ def _advance(last_ns: int | None, ns: int, rate_hz: float) -> int:
     return nxt if ns - nxt < period else ns
 
 
+def shorten_reason(reason: str) -> str:
+    """Return ``reason`` cut to ``MAX_REASON_CHARS`` (ending in ``...`` when cut)."""
+    if len(reason) > MAX_REASON_CHARS:
+        return reason[:MAX_REASON_CHARS - 3] + '...'
+    return reason
+
+
 def loss_note(missing: int) -> str:
     """Return the report warning for ``missing`` joint states that never arrived."""
     return (f'{missing} joint states published before this one never arrived (a full input '
@@ -558,8 +569,7 @@ def unevaluated_report(msg: JointState, frame_id: str, status: int, reason: str,
     """
     t0 = time.perf_counter() if t0 is None else t0
     report = error_report(Header(stamp=msg.header.stamp, frame_id=frame_id), status,
-                          reason[:MAX_REASON_CHARS - 3] + '...' if len(reason) > MAX_REASON_CHARS
-                          else reason)
+                          shorten_reason(reason))
     report.compute_time = time.perf_counter() - t0
     return report
 

@@ -41,7 +41,6 @@ from __future__ import annotations
 import argparse
 import json
 from pathlib import Path
-import struct
 import subprocess
 import sys
 import tempfile
@@ -52,6 +51,7 @@ import numpy as np
 from awp_ros.errors import ProcessError
 from awp_ros.node.dds import use_deep_queues
 from awp_ros.node.launcher import ros_env, start_node, stop_node
+from awp_ros.ros.cdr import report_stamp_status
 from awp_ros.soak.driver import drive, driver_command
 from awp_ros.soak.monitor import ProcessMonitor
 from awp_ros.soak.probe import Probe, wait_until
@@ -70,21 +70,6 @@ def _output_types() -> dict:
 
 
 OUTPUT_TYPES = _output_types()
-
-
-def report_stamp_status(data: bytes) -> tuple[int, int]:
-    """
-    Return the header stamp [ns] and the status of a serialized ``FeasibilityReport``.
-
-    Read from the CDR bytes without deserializing the message (the soak's subscriber, on the
-    node's cores, keeps to what it measures): a 4-byte encapsulation header (little endian,
-    ``00 01``), ``int32 sec``, ``uint32 nanosec``, the ``frame_id`` string (``uint32`` length
-    with its NUL, then the bytes) and the ``uint8 status`` right after it.
-    """
-    if data[:2] != b'\x00\x01':
-        raise ValueError(f'not a little-endian CDR message: {data[:4]!r}')
-    sec, nanosec, length = struct.unpack_from('<iII', data, 4)
-    return sec * 1_000_000_000 + nanosec, data[16 + length]
 
 
 def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
