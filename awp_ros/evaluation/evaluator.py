@@ -12,8 +12,9 @@ whole-robot CoM; SI units). Stage names are the keys of ``timings_ms`` [ms]:
    \tau_{max}\}` (closed-form parallelepipeds for 3-joint legs, batched).
 4. ``friction_polytopes``: each ∩ its friction pyramid ∩ ``n . f >= 0``, computed on first
    use (:attr:`LegResult.friction_polytope`: the FWS, leg messages, markers); this stage only
-   proves each non-empty (a force-polytope vertex strictly inside the pyramid) or, when that
-   test fails, computes them to warn about a leg that cannot push.
+   proves each non-empty (a force-polytope vertex, or a point on the pyramid's axis, strictly
+   inside the pyramid) or, when that test fails, computes them to warn about a leg that
+   cannot push.
 5. ``awp``: :math:`\sum_k L_k \mathcal F_k`, a zonotope with 3K generators when every leg
    is a parallelepiped (or a singular leg's flat image), else the exact Minkowski sum.
 6. ``cwc_fwp``: the contact wrench cone and FWP = AWP ∩ CWC (the seed's FWP).
@@ -65,7 +66,7 @@ from awp_ros.wrench.contact_forces import measured_contact_forces
 from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone
 from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
 from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
-from awp_ros.wrench.friction_polytope import friction_rows, FrictionPolytopes, vertex_inside
+from awp_ros.wrench.friction_polytope import friction_rows, FrictionPolytopes, inside_force
 from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope, feasible_wrench_polytope
 
 __all__ = ['compute_fws', 'FeasibilityEvaluator', 'STAGES', 'warm_up']
@@ -168,7 +169,7 @@ class FeasibilityEvaluator:
         if forces:
             rows = self._friction_rows(s.normals, s.mus)
             frictions = FrictionPolytopes(forces, rows)
-            for k in np.flatnonzero(~vertex_inside(forces, rows)).tolist():
+            for k in np.flatnonzero(~inside_force(forces, rows)).tolist():
                 if frictions[k].is_empty:
                     warnings.append(f'leg {s.stance[k]!r} cannot push on the ground within '
                                     'its torque limits (empty friction-bounded polytope)')

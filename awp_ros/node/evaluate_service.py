@@ -89,7 +89,7 @@ from awp_ros.evaluation.evaluator import FeasibilityEvaluator
 from awp_ros.geometry.linalg import quaternion_matrix
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.node.evaluate_compute import Computation
-from awp_ros.node.marker_worker import _LENGTH, _read, _write, end_process
+from awp_ros.node.marker_worker import _LENGTH, _read, _write, end_process, NICE
 from awp_ros.robot.config import RobotConfig
 from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.contact_source import EffortContacts
@@ -103,8 +103,6 @@ __all__ = ['EvaluateService', 'MAX_RESTARTS', 'NICE', 'evaluate_request', 'lower
 
 _S = FeasibilityReport
 
-#: Niceness added to the worker process where ``SCHED_IDLE`` is not available.
-NICE = 10
 #: Times a worker that ended unexpectedly is restarted.
 MAX_RESTARTS = 3
 #: Popen arguments of the worker: its own process group in the node's session (Python 3.11+;

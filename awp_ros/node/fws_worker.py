@@ -31,7 +31,7 @@ import sys
 import threading
 
 from awp_ros.evaluation.evaluator import compute_fws, warm_up
-from awp_ros.node.marker_worker import _read, _write, end_process, serve
+from awp_ros.node.marker_worker import _read, _write, end_process, serve, yield_to_node
 
 __all__ = ['FwsHandle', 'FwsRunner', 'FwsWorker']
 
@@ -85,6 +85,7 @@ class FwsWorker:
     def __init__(self, on_error: Callable[[str], None]) -> None:
         self._process = subprocess.Popen([sys.executable, '-m', 'awp_ros.node.fws_worker'],
                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        yield_to_node(self._process.pid)
         self._on_error = on_error
         self._lock = threading.Lock()
         self._futures: deque[Future] = deque()

@@ -181,10 +181,11 @@ def _joint_vector(values, joint_names: Sequence[str], name: str) -> np.ndarray:
             raw = [values[j] for j in joint_names]
         except KeyError:
             raw = None
-        if raw is not None and set(map(type, raw)) <= _PLAIN_NUMBERS:
-            out = np.array(raw, dtype=float)
-            if np.isfinite(out).all():
-                return out
+        # Plain numbers whose sum is finite are all finite (inf, nan propagate; a sum that
+        # overflows takes the checks below, which then pass).
+        if raw is not None and set(map(type, raw)) <= _PLAIN_NUMBERS \
+                and math.isfinite(sum(raw)):
+            return np.array(raw, dtype=float)
     if not isinstance(values, Mapping):
         raise InputError(f'{name} must map joint names to numbers, got {type(values).__name__}')
     known = set(joint_names)
@@ -214,10 +215,9 @@ def _vector(value, n: int, name: str) -> np.ndarray:
     if isinstance(value, (str, bytes, Mapping)) or not hasattr(value, '__len__') \
             or len(value) != n:
         raise InputError(f'{name} must be a list of {n} numbers, got {value!r}')
-    if type(value) in (tuple, list) and set(map(type, value)) <= _PLAIN_NUMBERS:
-        out = np.array(value, dtype=float)
-        if np.isfinite(out).all():
-            return out
+    if type(value) in (tuple, list) and set(map(type, value)) <= _PLAIN_NUMBERS \
+            and math.isfinite(sum(value)):
+        return np.array(value, dtype=float)
     return np.array([_number(x, f'{name}[{i}]') for i, x in enumerate(value)])
 
 

@@ -35,7 +35,7 @@ from awp_ros.wrench.contact_wrench_cone import friction_pyramid, friction_pyrami
 from awp_ros.wrench.force_polytope import polytope_from_halfspaces, triples
 
 __all__ = ['FrictionPolytopes', 'friction_halfspaces', 'friction_polytope', 'friction_polytopes',
-           'friction_rows', 'vertex_inside']
+           'friction_rows', 'inside_force']
 
 
 def friction_halfspaces(normal: np.ndarray, mu: float, sides: int) -> np.ndarray:
@@ -124,30 +124,58 @@ def friction_polytopes(forces: Sequence[Polytope], rows: np.ndarray, *, tol: flo
     return out
 
 
-def vertex_inside(forces: Sequence[Polytope], rows: np.ndarray, *,
-                  margin: float = 1e-6) -> np.ndarray:
+def inside_force(forces: Sequence[Polytope], rows: np.ndarray, *,
+                 margin: float = 1e-6) -> np.ndarray:
     r"""
-    Return, per leg, whether a vertex of its force polytope is strictly in its pyramid.
+    Return, per leg, whether a force of its force polytope is proven strictly in its pyramid.
 
-    .. math:: \exists v \in \mathrm{vert}(\mathcal F_k) : a \cdot v < -\epsilon
-              \; \forall a \in \mathrm{rows}_k
+    .. math:: \exists f \in \mathcal F_k : a \cdot f < -\epsilon \; \forall a \in
+              \mathrm{rows}_k, \quad f \in \mathrm{vert}(\mathcal F_k) \cup
+              \{t\, n_k : t > 0\}
 
-    A cheap proof that the friction-bounded polytope (1) is not empty (the vertex is in
-    it), so that the per-cycle emptiness warning does not need (1) itself; False does not
-    prove emptiness (the pyramid may cut a face without containing a vertex): compute (1).
+    A cheap proof that the friction-bounded polytope (1) is not empty, so that the
+    per-cycle emptiness warning does not need (1) itself. Two candidates: a vertex of the
+    force polytope, then the pyramid's axis ``t n_k`` (``n_k = -rows_k[-1]``), whose
+    interval of ``t`` inside ``A f <= b`` is three ratio tests and where every pyramid
+    row is ``t (a . n_k) < -margin`` once ``t`` is large enough: a leg carrying load
+    pushes near its normal, where a parallelepiped's vertices can all lie outside the
+    pyramid. False does not prove emptiness (the pyramid may cut a face off the axis and
+    off the vertices): compute (1).
 
-    :param forces: K force polytopes in R^3 [N] with their vertices.
+    :param forces: K force polytopes in R^3 [N] with their vertices and H-reps.
     :param rows: (K, N + 1, 3) unit outward rows of each leg's pyramid (:func:`friction_rows`).
-    :param margin: the distance [N] inside every pyramid plane a vertex must have.
+    :param margin: the distance [N] inside every pyramid plane the force must have.
     :return: boolean array (K,).
     """
     K = len(forces)
     if K and all(F.vertices.shape == forces[0].vertices.shape for F in forces):
         V = np.array([F.vertices for F in forces])                     # (K, n_v, 3)
         s = V @ rows.transpose(0, 2, 1)                                 # (K, n_v, N + 1)
-        return (s < -margin).all(axis=2).any(axis=1)
-    return np.array([bool(np.any(np.all(F.vertices @ rows[k].T < -margin, axis=1)))
-                     for k, F in enumerate(forces)], dtype=bool)
+        out = (s < -margin).all(axis=2).any(axis=1)
+    else:
+        out = np.array([bool(np.any(np.all(F.vertices @ rows[k].T < -margin, axis=1)))
+                        for k, F in enumerate(forces)], dtype=bool)
+    for k in np.flatnonzero(~out).tolist():
+        out[k] = _axis_inside(forces[k], rows[k], margin)
+    return out
+
+
+def _axis_inside(force: Polytope, rows: np.ndarray, margin: float) -> bool:
+    """Return whether a point ``t n`` of the pyramid's axis proves :func:`inside_force`."""
+    n = -rows[-1]
+    rn = rows @ n                                   # < 0 for every row of a proper pyramid
+    if force.is_empty or force.dimension < 3 or not np.all(rn < 0.0):
+        return False
+    lo = float(np.max(margin / -rn))                # every pyramid row below -margin
+    an = force.A @ n
+    up = an > 0.0
+    hi = float(np.min(force.b[up] / an[up])) if up.any() else np.inf
+    down = an < 0.0
+    if down.any():
+        lo = max(lo, float(np.max(force.b[down] / an[down])))
+    if np.any(force.b[~(up | down)] < 0.0):
+        return False
+    return lo < hi
 
 
 class FrictionPolytopes:

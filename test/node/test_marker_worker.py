@@ -115,3 +115,27 @@ def test_a_killed_worker_is_seen_dead(cycles):
         assert len(sink.published) == 1 and not sink.errors
     finally:
         worker.close()
+
+
+@pytest.mark.parametrize('name', ['markers', 'fws'])
+def test_worker_processes_yield_the_cpu_to_the_node(name, cycles):
+    # The node lowers each worker's priority by NICE when it starts it, so that a busy worker
+    # does not delay the node's joint states on shared cores; the node's is unchanged.
+    from awp_ros.node.fws_worker import FwsWorker
+    from awp_ros.node.marker_worker import NICE
+    sink = Sink()
+    worker = MarkerWorker(sink.publish, sink.error) if name == 'markers' else \
+        FwsWorker(sink.error)
+    ours = os.getpriority(os.PRIO_PROCESS, 0)
+    try:
+        if name == 'markers':
+            assert worker.submit(cycles[0].marker_job())
+            sink.wait(1)
+        else:
+            evaluator = FeasibilityEvaluator('hyq')
+            worker.submit(evaluator.fws_job(evaluator.evaluate(evaluator.standing_state(),
+                                                               fws=False))).result(30.0)
+        assert os.getpriority(os.PRIO_PROCESS, worker.pid) == min(ours + NICE, 19)
+        assert os.getpriority(os.PRIO_PROCESS, 0) == ours
+    finally:
+        worker.close()

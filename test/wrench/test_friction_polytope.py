@@ -10,7 +10,7 @@ from scipy.spatial import HalfspaceIntersection
 from awp_ros.wrench.force_polytope import force_polytope
 from awp_ros.wrench.friction_polytope import (friction_halfspaces, friction_polytope,
                                               friction_polytopes, friction_rows, FrictionPolytopes,
-                                              vertex_inside)
+                                              inside_force)
 
 RNG_SEED = 11
 
@@ -193,8 +193,14 @@ def feasible_by_lp(F, rows):
     return lp.status == 0
 
 
-def test_vertex_inside_proves_non_emptiness_and_the_lazy_batch_is_the_batch():
-    # Legs pushing well, pushing a little, not at all, and sideways: the vertex test may
+def vertex_in_pyramid(forces, rows, margin=1e-6):
+    """Return, per leg, whether a vertex is strictly inside the pyramid (brute force)."""
+    return np.array([any(np.all(rows[k] @ v < -margin) for v in F.vertices)
+                     for k, F in enumerate(forces)])
+
+
+def test_inside_force_proves_non_emptiness_and_the_lazy_batch_is_the_batch():
+    # Legs pushing well, pushing a little, not at all, and sideways: the test may
     # only say True where an LP finds the friction-bounded set non-empty, and the lazily
     # computed batch is the eager one.
     rng = np.random.default_rng(RNG_SEED + 2)
@@ -202,15 +208,19 @@ def test_vertex_inside_proves_non_emptiness_and_the_lazy_batch_is_the_batch():
     forces = [force_polytope(*random_leg(rng)) for _ in range(30)]
     forces += [force_polytope(J, np.array([0.0, 0.0, bz]), -np.full(3, 30.0),
                               np.full(3, 30.0)) for bz in (-40.0, -31.0, -29.0, 0.0)]
+    # A slab across the pyramid, off its axis (f_y in [40, 41]), its corners outside it
+    # (|f_x| = 200): non-empty, but neither a vertex nor the axis shows it.
+    forces.append(force_polytope(np.eye(3), np.array([0.0, 40.5, 50.5]),
+                                 np.array([-200.0, -0.5, -0.5]), np.array([200.0, 0.5, 0.5])))
     K = len(forces)
     normals = np.array([0.0, 0.0, 1.0]) + rng.uniform(0.0, 1.5, size=(K, 3)) \
         * rng.choice([-1.0, 1.0], size=(K, 3))
-    normals[-4:] = [0.0, 0.0, 1.0]
+    normals[-5:] = [0.0, 0.0, 1.0]
     normals /= np.linalg.norm(normals, axis=1)[:, None]
     mus = rng.uniform(0.2, 1.0, K)
-    mus[-4:] = 1.2                  # the last box's top vertices (+-60, +-75, 100) are inside
+    mus[-5:] = 1.2                  # the last box's top vertices (+-60, +-75, 100) are inside
     rows = friction_rows(normals, mus, 4)
-    inside = vertex_inside(forces, rows)
+    inside = inside_force(forces, rows)
     lp = np.array([feasible_by_lp(F, rows[k]) for k, F in enumerate(forces)])
     eager = friction_polytopes(forces, rows)
     lazy = FrictionPolytopes(forces, rows)
@@ -222,5 +232,7 @@ def test_vertex_inside_proves_non_emptiness_and_the_lazy_batch_is_the_batch():
         assert eager[k].is_empty == (not lp[k])
     assert np.all(lp[inside])                                # True proves non-empty
     assert inside.any() and (~lp).any()                      # both kinds were drawn
-    assert (lp & ~inside).any()        # cut faces without a vertex inside: the fallback
-    assert inside[-1] and not inside[-4] and not lp[-4]
+    assert (lp[:-5] & inside[:-5]).sum() > (lp[:-5] & inside[:-5]
+                                            & vertex_in_pyramid(forces[:-5], rows[:-5])).sum()
+    assert lp[-1] and not inside[-1]   # the slab: the fallback (1) decides
+    assert inside[-2] and not inside[-5] and not lp[-5]
