@@ -96,7 +96,10 @@ from awp_ros.ros.conversions import stamp_to_ns
 from awp_ros.ros.pipeline import loss_note, Pipeline, unevaluated_report
 from awp_ros.runtime import freeze_startup_objects, keep_freed_memory, limit_blas_threads
 
-__all__ = ['AwpNode', 'main']
+__all__ = ['AwpNode', 'SUBSCRIBERS_PERIOD_S', 'main']
+
+#: How often [s] the node asks which outputs have subscribers (:meth:`AwpNode._subscribed`).
+SUBSCRIBERS_PERIOD_S = 0.02
 
 
 class AwpNode(Node):
@@ -213,6 +216,7 @@ class AwpNode(Node):
         self.pub_regions = {k: self.create_publisher(PolygonStamped, f'~/{k}', qos_big)
                             for k in ('feasible_region', 'support_region')}
         self.pub_markers = self.create_publisher(MarkerArray, '~/markers', qos_big)
+        self._subscribed_set, self._subscribed_due = frozenset(), 0.0
         self.pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         # The single-threaded executor serves ready subscriptions in creation order: contacts
         # and imu first, so that a joint state is evaluated after the inputs sent before it.
@@ -367,20 +371,36 @@ class AwpNode(Node):
         cycle = self.pipeline.on_joint_state(msg, missing=missing or 0,
                                              queue_delay_s=_queue_delay(info))
         self.pub_report.publish(cycle.report_bytes)
+        subscribed = self._subscribed()
         if cycle.result is not None:
             for kind, pub in self.pub_wrench.items():
-                if pub.get_subscription_count():
+                if pub in subscribed:
                     self._publish_output(pub, kind, getattr(cycle, kind))
-            if self.pub_legs.get_subscription_count():
+            if self.pub_legs in subscribed:
                 self._publish_output(self.pub_legs, 'leg_polytopes', cycle.leg_polytopes)
             for name, pub in self.pub_regions.items():
-                if pub.get_subscription_count():
+                if pub in subscribed:
                     self._publish_output(pub, name, getattr(cycle, name))
-        if cycle.markers_due and self.pub_markers.get_subscription_count():
+        if cycle.markers_due and self.pub_markers in subscribed:
             self._publish_markers(cycle)
         self.diagnostics.evaluated(cycle.status, cycle.compute_time, self._latency(msg),
                                    cycle.status_message,
                                    None if cycle.result is None else len(cycle.result.stance))
+
+    def _subscribed(self) -> frozenset:
+        """
+        Return the output publishers that have subscribers (outputs are built only for them).
+
+        Asked of the middleware at most every ``SUBSCRIBERS_PERIOD_S``, not per joint state
+        (seven calls, ~1.5 us each): a subscriber that comes or goes is seen that much later.
+        """
+        now = time.monotonic()
+        if now >= self._subscribed_due:
+            outputs = [*self.pub_wrench.values(), self.pub_legs, *self.pub_regions.values(),
+                       self.pub_markers]
+            self._subscribed_set = frozenset(p for p in outputs if p.get_subscription_count())
+            self._subscribed_due = now + SUBSCRIBERS_PERIOD_S
+        return self._subscribed_set
 
     def _publish_markers(self, cycle) -> None:
         """Hand the markers to the worker process, or build and publish them here."""

@@ -42,7 +42,7 @@ class Cycle:
 
     def __init__(self, header: Header, report: FeasibilityReport | bytes,
                  result: FeasibilityResult | None, *, fws_computed: bool, markers_due: bool,
-                 marker_header: Header, marker_frame: tuple, style: MarkerStyle,
+                 marker_frame_id: str, marker_frame: tuple, style: MarkerStyle,
                  reference_point: np.ndarray, latest_fws: WrenchSetResult | None,
                  pyramid_sides: int, released_fws: tuple | None = None) -> None:
         self.header = header
@@ -56,7 +56,7 @@ class Cycle:
         self.result = result
         self.fws_computed = fws_computed
         self.markers_due = markers_due
-        self._marker_header = marker_header
+        self._marker_frame_id = marker_frame_id
         self._marker_frame = marker_frame
         self._style = style
         self._reference_point = reference_point
@@ -69,9 +69,14 @@ class Cycle:
     def unevaluated(cls, report: FeasibilityReport) -> Cycle:
         """Return the outputs of a joint state that was not evaluated: its report only."""
         return cls(report.header, report, None, fws_computed=False, markers_due=False,
-                   marker_header=report.header, marker_frame=(np.eye(3), np.zeros(3)),
+                   marker_frame_id=report.header.frame_id,
+                   marker_frame=(np.eye(3), np.zeros(3)),
                    style=MarkerStyle(), reference_point=np.zeros(3), latest_fws=None,
                    pyramid_sides=4)
+
+    def _marker_header(self) -> Header:
+        """Return the markers' header: the joint state's stamp, ``marker_frame_id``."""
+        return Header(stamp=self.header.stamp, frame_id=self._marker_frame_id)
 
     @property
     def report(self) -> FeasibilityReport:
@@ -164,14 +169,14 @@ class Cycle:
         sets whose margins only label the markers travel without their polytopes.
         """
         if self.result is None:
-            return error_markers, (self._marker_header, self.status_message), {
+            return error_markers, (self._marker_header(), self.status_message), {
                 'style': self._style}
         r = self.result
         slim = replace(r, awp=replace(r.awp, polytope=None), cwc=None,
                        fws=None if r.fws is None else replace(r.fws, polytope=None))
         fws = None if self._latest_fws is None else replace(self._latest_fws, polytope=None)
         R, t = self._marker_frame
-        return build_markers, (slim, self._marker_header), {
+        return build_markers, (slim, self._marker_header()), {
             'style': self._style, 'fws': fws, 'pyramid_sides': self._sides, 'rotation': R,
             'translation': t, 'status_text': self.status_message}
 

@@ -84,6 +84,9 @@ _S = FeasibilityReport
 #: Longest ``status_message`` of a report (longer reasons are cut, marked with '...').
 MAX_REASON_CHARS = 1000
 
+_ORIGIN = np.zeros(3)
+_ORIGIN.setflags(write=False)
+
 #: Evaluated joint states kept for :meth:`Pipeline.on_wrench_reference` (the nearest in time).
 REFERENCE_HISTORY = 64
 
@@ -115,6 +118,8 @@ class Pipeline:
         self._estimator = self._new_estimator()
         self._imu_error = ''
         self._evaluated: deque = deque(maxlen=REFERENCE_HISTORY)
+        self._style = MarkerStyle(force_scale=self.params.marker_force_scale,
+                                  moment_scale=self.params.marker_moment_scale)
         self._last_js_ns: int | None = None
         self._last_fws_ns: int | None = None
         self._last_marker_ns: int | None = None
@@ -446,18 +451,21 @@ class Pipeline:
         else:
             report.status_message = shorten_reason(report.status_message)
             report.compute_time = time.perf_counter() - t0
-        com = np.zeros(3) if result is None else result.com
-        marker_header = Header(stamp=msg.header.stamp,
-                               frame_id=p.marker_frame_id or p.wrench_frame_id)
+        com = _ORIGIN if result is None else result.com
         if p.marker_frame_id in ('', p.wrench_frame_id):
-            frame = (identity(3), np.zeros(3))
+            frame = (identity(3), _ORIGIN)
         else:  # the root link: x_base = R^T (com + x)
             frame = (R.T, R.T @ com)
-        style = MarkerStyle(force_scale=p.marker_force_scale,
-                            moment_scale=p.marker_moment_scale)
+        style = self._style
+        if style.force_scale != p.marker_force_scale \
+                or style.moment_scale != p.marker_moment_scale:
+            style = self._style = MarkerStyle(force_scale=p.marker_force_scale,
+                                              moment_scale=p.marker_moment_scale)
         return Cycle(header, report, result, fws_computed=fws_computed,
-                     markers_due=markers_due, marker_header=marker_header,
-                     marker_frame=frame, style=style, reference_point=R.T @ com,
+                     markers_due=markers_due,
+                     marker_frame_id=p.marker_frame_id or p.wrench_frame_id,
+                     marker_frame=frame, style=style,
+                     reference_point=com if R is identity(3) else R.T @ com,
                      latest_fws=self._latest_fws, pyramid_sides=self.config.pyramid_sides,
                      released_fws=released)
 
