@@ -77,6 +77,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_policy_name_from_kind, QoSProfile,
                        ReliabilityPolicy)
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, JointState
 from visualization_msgs.msg import MarkerArray
 
@@ -92,6 +93,7 @@ from awp_ros.node.marker_worker import MarkerWorker
 from awp_ros.node.parameters import NodeParameters
 from awp_ros.node.yield_gate import YieldGate
 from awp_ros.robot.parameters import PipelineParams
+from awp_ros.ros.cdr import JointStateBytes
 from awp_ros.ros.conversions import stamp_to_ns
 from awp_ros.ros.pipeline import loss_note, Pipeline, unevaluated_report
 from awp_ros.runtime import freeze_startup_objects, keep_freed_memory, limit_blas_threads
@@ -242,7 +244,8 @@ class AwpNode(Node):
                 qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
                                  reliability=reliability,
                                  durability=DurabilityPolicy.TRANSIENT_LOCAL)
-            sub = self._input_subscription(topic, mtype, callback, qos)
+            sub = self._input_subscription(topic, mtype, callback, qos,
+                                           raw=topic == 'joint_states')
             self.subscriptions_.append(sub)
             c = self.diagnostics.inputs[topic]
             c.name, c.msg_type = sub.topic_name, _type_name(mtype)
@@ -276,9 +279,14 @@ class AwpNode(Node):
                                             self._publish_diagnostics,
                                             clock=Clock(clock_type=ClockType.STEADY_TIME))
 
-    def _input_subscription(self, topic: str, mtype, callback, qos: QoSProfile):
+    def _input_subscription(self, topic: str, mtype, callback, qos: QoSProfile, *,
+                            raw: bool = False):
         """
         Subscribe to an input with the events that feed ``/diagnostics``.
+
+        ``raw``: the callback gets the serialized message (joint states:
+        :class:`~awp_ros.ros.cdr.JointStateBytes` reads them, ~4x cheaper than rclpy's
+        conversion to the generated class).
 
         ``message_lost`` (counted), ``incompatible_qos`` (a publisher whose QoS does not
         match: named with the policy, instead of only rclpy's log line),
@@ -303,10 +311,10 @@ class AwpNode(Node):
         for events in (full, lean):
             try:
                 return self.create_subscription(mtype, topic, callback, qos,
-                                                event_callbacks=events)
+                                                event_callbacks=events, raw=raw)
             except Exception:  # noqa: BLE001,S112 -- middleware without these events
                 continue
-        return self.create_subscription(mtype, topic, callback, qos)
+        return self.create_subscription(mtype, topic, callback, qos, raw=raw)
 
     # -- callbacks -------------------------------------------------------------------------
 
@@ -339,20 +347,24 @@ class AwpNode(Node):
             report = self.pipeline.on_wrench_reference(msg)
         self.pub_reference.publish(report)
 
-    def _on_joint_state(self, msg: JointState, info: dict) -> None:
+    def _on_joint_state(self, data: bytes, info: dict) -> None:
         try:
             self.drain.take_inputs()
-            self._handle_joint_state(msg, info)
+            self._handle_joint_state(data, info)
             self.drain.run()
         finally:
             if self.query_gate is not None:     # back to the executor: the node is idle
                 self.query_gate.resume()
 
-    def _handle_joint_state(self, msg: JointState, info: dict) -> None:
+    def _handle_joint_state(self, data: bytes, info: dict) -> None:
         # A query being evaluated is stopped from here until the input queue is empty (the
         # drain's on_idle, or the return to the executor): one stop per busy stretch.
         if self.query_gate is not None:
             self.query_gate.pause()
+        try:
+            msg = JointStateBytes.parse(data)
+        except ValueError:          # not what a JointState publisher sends: rclpy decides
+            msg = deserialize_message(data, JointState)
         self._answer_joint_state(msg, info)
 
     def _answer_joint_state(self, msg: JointState, info: dict) -> None:

@@ -11,9 +11,11 @@ from geometry_msgs.msg import Wrench
 import numpy as np
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
-from awp_ros.ros.cdr import CdrLayout, layout, report_stamp_status, report_status
+from awp_ros.ros.cdr import (CdrLayout, JointStateBytes, layout, report_stamp_status,
+                             report_status)
 
 
 def _set(msg, path: str, value) -> None:
@@ -92,6 +94,41 @@ def test_report_status_and_stamp_read_from_the_bytes():
 
 
 def test_unsupported_fields_are_refused_by_name():
-    from sensor_msgs.msg import JointState      # sequence<double>: not a flat message
     with pytest.raises(TypeError, match="'position' of type 'sequence<double>'"):
         CdrLayout(JointState)
+
+
+def _random_joint_state(rng, names_pool):
+    msg = JointState()
+    msg.header.stamp.sec = int(rng.integers(-2**31, 2**31))
+    msg.header.stamp.nanosec = int(rng.integers(0, 10**9))
+    msg.header.frame_id = ''.join(rng.choice(list('bé_1'), size=int(rng.integers(0, 9))))
+    msg.name = list(names_pool[int(rng.integers(len(names_pool)))])
+    k = len(msg.name)
+    for field in ('position', 'velocity', 'effort'):     # one per name, none, or a wrong count
+        n = int(rng.choice([k, 0, max(k - 1, 0), k + 2]))
+        setattr(msg, field, (rng.normal(size=n) * 10.0 ** rng.integers(-3, 4)).tolist())
+    return msg
+
+
+def test_joint_state_bytes_read_what_the_typesupport_wrote():
+    rng = np.random.default_rng(11)
+    hyq = [f'{leg}_{j}_joint' for leg in ('lf', 'rf', 'lh', 'rh') for j in ('haa', 'hfe', 'kfe')]
+    pool = [hyq, hyq[:6], hyq + ['é_wheel'], [], ['a'], ['ab', 'c'], ['abc'], hyq[::-1]]
+    for _ in range(400):            # names repeat (the cache) and change (every pool entry)
+        msg = _random_joint_state(rng, pool)
+        got = JointStateBytes.parse(serialize_message(msg))
+        ref = deserialize_message(serialize_message(msg), JointState)
+        assert got.header.stamp == ref.header.stamp
+        assert isinstance(got.header.stamp, Time)
+        assert got.header.frame_id == ref.header.frame_id
+        assert list(got.name) == list(ref.name)
+        for field in ('position', 'velocity', 'effort'):
+            assert np.array_equal(getattr(got, field), np.asarray(getattr(ref, field)))
+
+
+@pytest.mark.parametrize('data', [b'', b'\x00\x01\x00\x00\x01', b'\x01\x00\x00\x00' + bytes(40),
+                                  b'\x00\x01\x00\x00' + bytes(8) + b'\xff\xff\xff\x7f'])
+def test_joint_state_bytes_refuse_what_is_not_one(data):
+    with pytest.raises(ValueError):
+        JointStateBytes.parse(data)
