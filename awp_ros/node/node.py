@@ -95,7 +95,7 @@ from awp_ros.node.yield_gate import YieldGate
 from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.cdr import JointStateBytes
 from awp_ros.ros.conversions import stamp_to_ns
-from awp_ros.ros.pipeline import loss_note, Pipeline, unevaluated_report
+from awp_ros.ros.pipeline import loss_note, Pipeline, REFERENCE_HISTORY, unevaluated_report
 from awp_ros.runtime import freeze_startup_objects, keep_freed_memory, limit_blas_threads
 
 __all__ = ['AwpNode', 'SUBSCRIBERS_PERIOD_S', 'main']
@@ -405,6 +405,8 @@ class AwpNode(Node):
 
         Asked of the middleware at most every ``SUBSCRIBERS_PERIOD_S``, not per joint state
         (seven calls, ~1.5 us each): a subscriber that comes or goes is seen that much later.
+        Likewise whether ``~/wrench_reference`` has publishers (the evaluated joint states
+        kept for them, :meth:`~awp_ros.ros.pipeline.Pipeline.keep_references`).
         """
         now = time.monotonic()
         if now >= self._subscribed_due:
@@ -412,6 +414,9 @@ class AwpNode(Node):
                        self.pub_markers]
             self._subscribed_set = frozenset(p for p in outputs if p.get_subscription_count())
             self._subscribed_due = now + SUBSCRIBERS_PERIOD_S
+            if self.pipeline is not None:       # references kept only for a publisher of them
+                self.pipeline.keep_references(
+                    REFERENCE_HISTORY if self.sub_reference.get_publisher_count() else 1)
         return self._subscribed_set
 
     def _publish_markers(self, cycle) -> None:

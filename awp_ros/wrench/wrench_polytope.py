@@ -18,6 +18,8 @@ Equations (seed eqs. 1-3 and its Sec. on the FWP):
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from awp_ros.errors import InputError
@@ -180,10 +182,11 @@ def _check_legs(positions: np.ndarray, centers: np.ndarray,
         msg = (f'AWP needs positions (K, 3), centers (K, 3), generators (K, 3, 3); got '
                f'{P.shape}, {C.shape}, {H.shape}')
         raise InputError(msg)
-    for name, arr in (('positions', P), ('centers', C), ('generators', H)):
-        if not np.isfinite(arr).all():
-            msg = f'AWP {name} must be finite; got {arr.tolist()}'
-            raise InputError(msg)
+    if not math.isfinite(P.sum() + C.sum() + H.sum()):     # else: which one (or an overflow)
+        for name, arr in (('positions', P), ('centers', C), ('generators', H)):
+            if not np.isfinite(arr).all():
+                msg = f'AWP {name} must be finite; got {arr.tolist()}'
+                raise InputError(msg)
     return P, C, H
 
 

@@ -19,7 +19,7 @@ from awp_ros.robot.parameters import PipelineParams
 from awp_ros.robot.state import RobotState
 from awp_ros.ros.conversions import polytope_from_msg, stamp_to_ns
 from awp_ros.ros.cycle import OUTPUTS
-from awp_ros.ros.pipeline import Pipeline
+from awp_ros.ros.pipeline import Pipeline, REFERENCE_HISTORY
 from cases import contacts_msg, efforts_for, FEET, joints_msg, stamp, T0
 
 S = FeasibilityReport
@@ -374,3 +374,16 @@ def test_joint_states_from_two_publishers_are_merged_without_warnings(evaluator)
     quiet.on_contacts(contacts_msg(T0))
     quiet.on_joint_state(part(range(len(names)), T0, extra=['arm_joint', 'wheel']))
     assert quiet.extra_joints == set()
+
+
+def test_keep_references_sets_how_many_evaluated_states_answer_wrench_references():
+    pl = Pipeline('hyq', PipelineParams(fws_rate_hz=1.0))
+    assert pl._evaluated.maxlen == REFERENCE_HISTORY          # the library default: all
+    for i in range(3):
+        pl.on_contacts(contacts_msg(T0 + i * 10**7, FEET))
+        pl.on_joint_state(joints_msg(pl.evaluator, T0 + i * 10**7))
+    pl.keep_references(1)                                     # the newest is kept
+    assert [stamp_to_ns(e[0]) for e in pl._evaluated] == [T0 + 2 * 10**7]
+    pl.keep_references(REFERENCE_HISTORY)
+    pl.on_joint_state(joints_msg(pl.evaluator, T0 + 3 * 10**7))
+    assert [stamp_to_ns(e[0]) for e in pl._evaluated] == [T0 + 2 * 10**7, T0 + 3 * 10**7]
