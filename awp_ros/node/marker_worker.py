@@ -19,6 +19,7 @@ reason; a worker that died makes :attr:`alive` false and the node builds markers
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable
 import os
 import pickle
@@ -65,16 +66,23 @@ class MarkerWorker:
     :param publish: called with each serialized MarkerArray (``bytes``), from a thread.
     :param on_error: called with the reason of a job that failed, from a thread.
     :param max_pending: jobs that may wait for the worker.
+    :param fallback: called, from a thread, with each job the worker took but will never
+        answer because it died (those in its pipe or on its hands, and those queued after):
+        the node builds them itself, so that no due marker is lost unseen. None: dropped.
     """
 
     def __init__(self, publish: Callable[[bytes], None], on_error: Callable[[str], None], *,
-                 max_pending: int = 2) -> None:
+                 max_pending: int = 2,
+                 fallback: Callable[[MarkerJob], None] | None = None) -> None:
         self._process = subprocess.Popen([sys.executable, '-m', 'awp_ros.node.marker_worker'],
                                          stdin=subprocess.PIPE, stdout=subprocess.PIPE)
         yield_to_node(self._process.pid)
         self._pending = threading.BoundedSemaphore(max_pending)
         self._jobs: queue.SimpleQueue = queue.SimpleQueue()
-        self._publish, self._on_error = publish, on_error
+        self._publish, self._on_error, self._fallback = publish, on_error, fallback
+        self._in_flight: deque = deque()     # jobs written to the worker, not yet answered
+        self._lock = threading.Lock()
+        self._broken = False
         self._closed = False
         self._threads = [threading.Thread(target=target, name=name, daemon=True)
                          for target, name in ((self._send, 'awp_marker_sender'),
@@ -117,23 +125,58 @@ class MarkerWorker:
         stream = self._process.stdin
         while True:
             job = self._jobs.get()
-            try:
-                if job is None:
+            if job is None:
+                try:
                     stream.close()
-                    return
+                except (BrokenPipeError, OSError, ValueError):
+                    pass
+                return
+            with self._lock:
+                broken = self._broken
+                if not broken:
+                    self._in_flight.append(job)
+            if broken:                               # the worker is gone: built elsewhere
+                self._lost([job])
+                continue
+            try:
                 _write(stream, job)
             except (BrokenPipeError, OSError, ValueError):     # the worker is gone
-                return
+                self._worker_gone()
             except Exception as exc:  # noqa: BLE001 -- a job that cannot be pickled
+                with self._lock:
+                    self._in_flight.remove(job)
                 self._pending.release()
                 self._on_error(f'markers: {type(exc).__name__}: {exc}')
+
+    def _worker_gone(self) -> None:
+        """Hand every job the dead worker will not answer to the fallback (once)."""
+        with self._lock:
+            if self._broken:
+                return
+            self._broken = True
+            lost = list(self._in_flight)
+            self._in_flight.clear()
+        self._lost(lost)
+
+    def _lost(self, jobs: list) -> None:
+        for job in jobs:
+            self._pending.release()
+            if self._fallback is not None:
+                try:
+                    self._fallback(job)
+                except Exception as exc:  # noqa: BLE001 -- reported, the thread goes on
+                    self._on_error(f'markers: {type(exc).__name__}: {exc}')
 
     def _read(self) -> None:
         while True:
             try:
                 ok, payload = _read(self._process.stdout)
             except (EOFError, OSError, pickle.UnpicklingError):   # the worker is gone
+                self._worker_gone()
                 return
+            with self._lock:
+                if self._in_flight:
+                    self._in_flight.popleft()
             self._pending.release()
             try:
                 if ok:

@@ -261,7 +261,8 @@ class AwpNode(Node):
             self.fws_runner.start()
         self.marker_worker = None
         if self.parameters.value('marker_worker') and p.marker_rate_hz > 0.0:
-            self.marker_worker = MarkerWorker(self.pub_markers.publish, self._output_error)
+            self.marker_worker = MarkerWorker(self.pub_markers.publish, self._output_error,
+                                              fallback=self._build_marker_job)
         # ~/evaluate: answered by a worker process, beside the stream (evaluate_service.py);
         # its computation is paused while a joint state is handled (yield_gate.py).
         self.query_gate = YieldGate.create() if self.parameters.value('evaluate_yield') \
@@ -435,6 +436,11 @@ class AwpNode(Node):
             self._output_error('the marker worker process ended; building markers in the '
                                'node from now on')
         self._publish_output(self.pub_markers, 'markers', cycle.markers)
+
+    def _build_marker_job(self, job) -> None:
+        """Build and publish, here, a marker job the worker took but died before answering."""
+        function, args, kwargs = job
+        self._publish_output(self.pub_markers, 'markers', lambda: function(*args, **kwargs))
 
     def _output_error(self, reason: str) -> None:
         """Count and log an output that could not be built or published (any thread)."""

@@ -139,3 +139,28 @@ def test_worker_processes_yield_the_cpu_to_the_node(name, cycles):
         assert os.getpriority(os.PRIO_PROCESS, 0) == ours
     finally:
         worker.close()
+
+
+def test_jobs_a_dying_worker_took_go_to_the_fallback():
+    # A job on the worker's hands when it is killed, and one submitted after: neither is
+    # answered, both reach the fallback (the node builds them), each once; none is an error.
+    sink = Sink()
+    lost: list = []
+    worker = MarkerWorker(sink.publish, sink.error, fallback=lost.append)
+    try:
+        slow = (time.sleep, (30.0,), {})           # still sleeping in the worker when killed
+        assert worker.submit(slow)
+        time.sleep(1.0)                            # the worker has read it
+        os.kill(worker.pid, signal.SIGKILL)
+        deadline = time.monotonic() + 10
+        while not lost and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert lost == [slow]
+        later = (time.sleep, (0.0,), {})
+        assert worker.submit(later)
+        deadline = time.monotonic() + 10
+        while len(lost) < 2 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert lost == [slow, later] and not sink.published and not sink.errors
+    finally:
+        worker.close()
