@@ -46,6 +46,7 @@ class SoakResult:
     timeline: list = field(default_factory=list)
     node_alive: bool = True
     outputs: dict = field(default_factory=dict)
+    load_average: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """Return the result as JSON-ready builtins (without the timeline)."""
@@ -87,6 +88,10 @@ class SoakResult:
             f'{self.node_lost_total} lost (DDS events); its compute time p50 '
             f'{self.node_compute_p50_ms} ms',
         ]
+        if self.load_average:
+            lines.append('machine load average (1, 5, 15 min): ' + '; '.join(
+                f'{when} {" ".join(f"{x:.2f}" for x in values)}'
+                for when, values in self.load_average.items()))
         if self.outputs:
             lines.append('other outputs received (subscribed with --subscribe): ' + ', '.join(
                 f'{name} {count}' for name, count in self.outputs.items()))

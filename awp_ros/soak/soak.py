@@ -27,10 +27,12 @@ Measured: joint states sent and their rate, reports received, **missing** (a sta
 without a report), **duplicates**, unexpected stamps, the report statuses, the latency
 from the joint-state stamp to the report's reception here (p50 / p99 / max, over the
 whole run and after the warm-up), the node's CPU [% of one core] and RSS [MB] over time,
-and the RSS growth from the end of the warm-up to the end of the drive (goal < 5 %).
-After the drive it waits for the backlog to drain (a node slower than the input rate
-answers late, from its reliable queue of ``qos_depth`` joint states, but answers). It
-prints a table and, as its last line, one JSON object.
+the RSS growth from the end of the warm-up to the end of the drive (goal < 5 %), and the
+machine's load average before the drive and at its end (``os.getloadavg``: on a shared
+machine what else ran decides the figures). After the drive it waits for the backlog to
+drain (a node slower than the input rate answers late, from its reliable queue of
+``qos_depth`` joint states, but answers). It prints a table and, as its last line, one JSON
+object.
 
 The helpers (:class:`Probe`, :func:`start_node`, :class:`ProcessMonitor`,
 :func:`run_soak`) are used by the tests too.
@@ -40,6 +42,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 from pathlib import Path
 import subprocess
 import sys
@@ -148,9 +151,11 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
         cmd = driver_command(rate_hz, duration_s, robot=robot, namespace=ns,
                              stamps_out=stamps_file.name, contacts_rate_hz=contacts_rate_hz,
                              depth=n_max + 1000)
+        result.load_average['before the drive'] = list(os.getloadavg())
         driver = subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, text=True)
         out, _ = driver.communicate(timeout=duration_s + 180)
         t_end = time.monotonic()
+        result.load_average['at its end'] = list(os.getloadavg())
         lines = [ln for ln in out.splitlines() if ln.startswith('{')]
         if driver.returncode != 0 or not lines:
             raise ProcessError(f'the driver failed (exit {driver.returncode}): {out[-2000:]}')

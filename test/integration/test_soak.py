@@ -87,6 +87,9 @@ def test_short_soak_loses_nothing_and_rss_stays_flat(ros_env):
     assert any(name.startswith('awp_ros.node.marker_worker (pid ')
                for name in r.workers_cpu_percent), r.workers_cpu_percent
     assert r.latency_ms['p50'] > 0.0 and len(r.timeline) >= 4
+    assert list(r.load_average) == ['before the drive', 'at its end']
+    assert all(len(v) == 3 and min(v) >= 0.0 for v in r.load_average.values())
+    assert 'machine load average (1, 5, 15 min): before the drive ' in r.table()
 
 
 def test_a_queue_too_short_for_the_backlog_loses_joint_states_but_counts_each(ros_env):
