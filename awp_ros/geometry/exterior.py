@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 from itertools import combinations
+from math import comb
 
 import numpy as np
 
@@ -61,9 +62,14 @@ def wedge_all(X: np.ndarray, Y: np.ndarray, r: int, p: int, q: int,
     :param out: optional buffer ``(B, n_x, n_y C(r, p + q))`` for the result.
     :return: ``(B, n_x n_y, C(r, p + q))``, row ``i n_y + j`` holding ``x_i ^ y_j``.
     """
+    B, nx, ny = X.shape[0], X.shape[1], Y.shape[1]
+    if p == 0 or q == 0:            # a scalar factor: a broadcast product, no table
+        cs = comb(r, p + q)
+        target = None if out is None else out.reshape(B, nx, ny, cs)
+        prod = np.multiply(X[:, :, None, :], Y[:, None, :, :], out=target)
+        return prod.reshape(B, nx * ny, cs)
     T = wedge_table(r, p, q)
     cp, cq, cs = T.shape
-    B, nx, ny = X.shape[0], X.shape[1], Y.shape[1]
     # My[b, i_p, j, s] = sum_q Y[b, j, q] T[i_p, q, s], then one product with X.
     My = (Y @ T.transpose(1, 0, 2).reshape(cq, cp * cs)).reshape(B, ny, cp, cs)
     My = My.transpose(0, 2, 1, 3).reshape(B, cp, ny * cs)

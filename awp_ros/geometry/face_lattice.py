@@ -41,6 +41,7 @@ from itertools import combinations
 import numpy as np
 
 from awp_ros.errors import InputError
+from awp_ros.geometry import kernels
 from awp_ros.geometry.linalg import cross3, orthonormal_span
 
 __all__ = ['FaceGroup', 'Faces', 'polytope_faces']
@@ -177,6 +178,12 @@ def polytope_faces(points: np.ndarray, halfspaces: tuple[np.ndarray, np.ndarray]
     basis = orthonormal_span(X, rtol=rank_tol) if scale > 0.0 else np.zeros((3, 0))
     d = basis.shape[1]
     tol = plane_tol * scale
+    if d == 3 and halfspaces is not None and kernels.ENABLED:
+        solid = kernels.solid_faces(V, halfspaces[0], halfspaces[1], origin, scale, tol)
+        if solid is not None:       # compiled, one call (the code below is its reference)
+            extreme, N, offsets, ed, ec, em, fd, fc, fm = solid
+            groups = (FaceGroup(ed, ec, em), FaceGroup(fd, fc, fm), _WHOLE)
+            return Faces(3, extreme, origin, np.eye(3), groups, N, offsets)
     # Merge points closer than tol (keep the first of each cluster). A set found flat (or a
     # segment) within rank_tol is projected on its affine hull: the faces and the points
     # then describe one and the same (flattened) polytope.
@@ -294,8 +301,13 @@ def _solid_faces(V: np.ndarray, origin: np.ndarray, scale: float, N: np.ndarray,
     mg /= np.linalg.norm(mg, axis=1)[:, None]
     edges = FaceGroup.from_faces(e[:, None, :], np.stack([mf, mg], axis=1))
     facets = FaceGroup.from_faces(_plane_bases(N), N[:, None, :])
-    whole = FaceGroup.from_faces(np.eye(3)[None, :, :], np.zeros((1, 0, 3)))
-    return Faces(3, V[extreme], origin, np.eye(3), (edges, facets, whole), N, offsets)
+    return Faces(3, V[extreme], origin, np.eye(3), (edges, facets, _WHOLE), N, offsets)
+
+
+# The group of a solid polytope itself: all of R^3, no check (its normal cone is {0}).
+_WHOLE = FaceGroup.from_faces(np.eye(3)[None, :, :], np.zeros((1, 0, 3)))
+for _array in (_WHOLE.dirs, _WHOLE.checks, _WHOLE.mask):
+    _array.setflags(write=False)
 
 
 def _edge_directions(V: np.ndarray, nf: np.ndarray, ng: np.ndarray, shared: np.ndarray,

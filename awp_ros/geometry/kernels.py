@@ -25,7 +25,9 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
   lines' dual points, the primal vertices, short edges dropped, the margin);
 * :func:`leg_vertices`, :func:`projected_polygon` and :func:`feasible_region`: the feasible
   region by exact iterative projection of the contact-force LP (a small dense simplex);
-* :func:`parallelepipeds`: the force parallelepipeds of 3-joint legs (inverse by cofactors).
+* :func:`parallelepipeds`: the force parallelepipeds of 3-joint legs (inverse by cofactors);
+* :func:`solid_faces`: the faces and normal cones of a solid leg polytope from its points and
+  H-rep (facet rows, edges, their classes), for the FWS's Minkowski sum.
 
 Each is measured beside its numpy code, interleaved in one process, by ``awp_bench
 --kernels`` (the README's speed section has the figures).
@@ -60,7 +62,8 @@ __all__ = [
     'ENABLED', 'MAX_BITS', 'cone_double_description', 'cone_facets', 'cone_recheck',
     'cross_products', 'flat_cone_facets',
     'feasible_region', 'flat_zonotope_facets', 'leg_vertices', 'lifted_rays', 'lifted_zonotope',
-    'parallelepipeds', 'polar_hull', 'polygon_region', 'projected_polygon', 'wedge_tables',
+    'parallelepipeds', 'polar_hull', 'polygon_region', 'projected_polygon', 'solid_faces',
+    'wedge_tables',
     'wrench_slice', 'zonotope_facets']
 
 #: Whether the compiled kernels are used (numba importable and not disabled).
@@ -1759,6 +1762,244 @@ def leg_vertices(A: np.ndarray, b: np.ndarray, tol: float = 1e-9) -> np.ndarray:
                          np.ascontiguousarray(b, dtype=float), float(tol))
 
 
+# -- Faces of a solid leg polytope (the numpy reference: awp_ros.geometry.face_lattice) ----
+
+@_jit(inline=True)
+def _stable_argsort(keys):
+    """Return a stable argsort of a short int64 array (insertion sort)."""
+    n = keys.shape[0]
+    order = np.arange(n)
+    for i in range(1, n):
+        j, item = i, order[i]
+        while j > 0 and keys[order[j - 1]] > keys[item]:
+            order[j] = order[j - 1]
+            j -= 1
+        order[j] = item
+    return order
+
+
+@_jit(inline=True)
+def _face_classes(dirs, checks):
+    """
+    Group faces by direction space as ``FaceGroup.from_faces`` does (same classes and order).
+
+    ``dirs`` (n, d, 3), d = 1 (edges) or 2 (facets); ``checks`` (n, c, 3). Returns the
+    class directions (m, d, 3), checks (m, k, c, 3), mask (m, k), and False on a hash
+    collision of two different rounded keys (the caller then runs the numpy code).
+    """
+    n, d, c = dirs.shape[0], dirs.shape[1], checks.shape[1]
+    q = np.empty((n, 3), dtype=np.int64)
+    key = np.empty(3)
+    for i in range(n):
+        if d == 1:
+            key[:] = dirs[i, 0]
+        else:
+            a, e = dirs[i, 0], dirs[i, 1]
+            key[0] = a[1] * e[2] - a[2] * e[1]
+            key[1] = a[2] * e[0] - a[0] * e[2]
+            key[2] = a[0] * e[1] - a[1] * e[0]
+        key /= np.sqrt(key[0] ** 2 + key[1] ** 2 + key[2] ** 2)
+        lead = 0
+        for t in range(1, 3):
+            if abs(key[t]) > abs(key[lead]):
+                lead = t
+        s = np.sign(key[lead])
+        for t in range(3):
+            q[i, t] = np.int64(np.rint(key[t] * s * 1e10))
+    h = q[:, 0] + q[:, 1] * np.int64(1000003) + q[:, 2] * np.int64(998244353)
+    order = _stable_argsort(h)
+    inverse = np.empty(n, dtype=np.int64)
+    first = np.empty(n, dtype=np.int64)
+    m = 0
+    for t in range(n):
+        i = order[t]
+        if t == 0 or h[i] != h[order[t - 1]]:
+            first[m] = i
+            m += 1
+        inverse[i] = m - 1
+    ok = True
+    for i in range(n):
+        f = first[inverse[i]]
+        if q[i, 0] != q[f, 0] or q[i, 1] != q[f, 1] or q[i, 2] != q[f, 2]:
+            ok = False
+    counts = np.zeros(m, dtype=np.int64)
+    for i in range(n):
+        counts[inverse[i]] += 1
+    by_size = _stable_argsort(-counts)
+    rank = np.empty(m, dtype=np.int64)
+    for t in range(m):
+        rank[by_size[t]] = t
+    k = counts.max() if m else 0
+    out_dirs = np.empty((m, d, 3))
+    out_checks = np.zeros((m, k, c, 3))
+    mask = np.zeros((m, k), dtype=np.bool_)
+    filled = np.zeros(m, dtype=np.int64)
+    for t in range(m):
+        out_dirs[rank[t]] = dirs[first[t]]
+    for i in range(n):                                # slots in input order within a class
+        g = rank[inverse[i]]
+        out_checks[g, filled[g]] = checks[i]
+        mask[g, filled[g]] = True
+        filled[g] += 1
+    return out_dirs, out_checks, mask, ok
+
+
+@_jit
+def _solid_faces(V, A, b, origin, scale, tol):
+    # Points closer than tol are merged (the first of each cluster stays).
+    n0 = V.shape[0]
+    keep = np.ones(n0, dtype=np.bool_)
+    for i in range(n0):
+        for j in range(i):
+            s = 0.0
+            for t in range(3):
+                s += ((V[i, t] - origin[t]) - (V[j, t] - origin[t])) ** 2
+            if np.sqrt(s) <= tol:
+                keep[i] = False
+                break
+    V = V[keep]
+    n = V.shape[0]
+    # Facets: unit rows whose points span a plane, one per incidence set (in key order).
+    R = A.shape[0]
+    rows = np.empty((R, 3))
+    inc_all = np.zeros((R, n), dtype=np.bool_)
+    keys = np.empty(R, dtype=np.int64)
+    m = 0
+    S = np.empty((3, 3))
+    mean = np.empty(3)
+    for r in range(R):
+        norm = np.sqrt(A[r, 0] ** 2 + A[r, 1] ** 2 + A[r, 2] ** 2)
+        if not norm > 0.0:
+            continue
+        a = A[r] / norm
+        br = b[r] / norm
+        count = 0
+        key = np.int64(0)
+        mean[:] = 0.0
+        S[:, :] = 0.0
+        for i in range(n):
+            if abs(V[i, 0] * a[0] + V[i, 1] * a[1] + V[i, 2] * a[2] - br) <= tol:
+                inc_all[m, i] = True
+                key += np.int64(1) << i
+                count += 1
+                for u in range(3):
+                    mean[u] += V[i, u]
+                    for v in range(3):
+                        S[u, v] += V[i, u] * V[i, v]
+        c = max(count, 1)
+        for u in range(3):
+            for v in range(3):
+                S[u, v] = S[u, v] / c - (mean[u] / c) * (mean[v] / c)
+        if np.linalg.eigvalsh(S)[1] > tol * tol:
+            rows[m] = a
+            keys[m] = key
+            m += 1
+    order = _stable_argsort(keys[:m])
+    F = 0
+    pick = np.empty(m, dtype=np.int64)
+    for t in range(m):
+        if t == 0 or keys[order[t]] != keys[order[t - 1]]:
+            pick[F] = order[t]
+            F += 1
+    N = np.empty((F, 3))
+    inc = np.zeros((F, n), dtype=np.bool_)
+    offsets = np.empty(F)
+    for f in range(F):
+        N[f] = rows[pick[f]]
+        inc[f] = inc_all[pick[f]]
+        best = -np.inf
+        for i in range(n):
+            best = max(best, V[i, 0] * N[f, 0] + V[i, 1] * N[f, 1] + V[i, 2] * N[f, 2])
+        offsets[f] = best
+    extreme = np.zeros(n, dtype=np.bool_)
+    for i in range(n):
+        extreme[i] = inc[:, i].sum() >= 3
+    # Edges: facet pairs sharing two points, direction n_f x n_g or the chord.
+    E = 0
+    pairs = np.empty((F * (F - 1) // 2, 2), dtype=np.int64)
+    for f in range(F):
+        for g in range(f + 1, F):
+            if (inc[f] & inc[g]).sum() >= 2:
+                pairs[E, 0], pairs[E, 1] = f, g
+                E += 1
+    edirs = np.empty((E, 1, 3))
+    echecks = np.empty((E, 2, 3))
+    for t in range(E):
+        nf, ng = N[pairs[t, 0]], N[pairs[t, 1]]
+        e = np.empty(3)
+        e[0] = nf[1] * ng[2] - nf[2] * ng[1]
+        e[1] = nf[2] * ng[0] - nf[0] * ng[2]
+        e[2] = nf[0] * ng[1] - nf[1] * ng[0]
+        sin = np.sqrt(e[0] ** 2 + e[1] ** 2 + e[2] ** 2)
+        if sin > 0.0:
+            e /= sin
+        lo, hi = np.inf, -np.inf
+        i0, i1 = 0, 0
+        for i in range(n):
+            if inc[pairs[t, 0], i] and inc[pairs[t, 1], i]:
+                s = V[i, 0] * e[0] + V[i, 1] * e[1] + V[i, 2] * e[2]
+                if s < lo:
+                    lo, i0 = s, i
+                if s > hi:
+                    hi, i1 = s, i
+        chord = V[i1] - V[i0]
+        length = np.sqrt(chord[0] ** 2 + chord[1] ** 2 + chord[2] ** 2)
+        if length * sin < scale:
+            e = chord / length
+        pf = nf - (nf[0] * e[0] + nf[1] * e[1] + nf[2] * e[2]) * e
+        pg = ng - (ng[0] * e[0] + ng[1] * e[1] + ng[2] * e[2]) * e
+        fg = pf[0] * pg[0] + pf[1] * pg[1] + pf[2] * pg[2]
+        mf = pf - fg * pg / (pg[0] ** 2 + pg[1] ** 2 + pg[2] ** 2)
+        mg = pg - fg * pf / (pf[0] ** 2 + pf[1] ** 2 + pf[2] ** 2)
+        edirs[t, 0] = e
+        echecks[t, 0] = mf / np.sqrt(mf[0] ** 2 + mf[1] ** 2 + mf[2] ** 2)
+        echecks[t, 1] = mg / np.sqrt(mg[0] ** 2 + mg[1] ** 2 + mg[2] ** 2)
+    # Facet planes: u = n x (the axis of n's smallest component), w = n x u.
+    fdirs = np.empty((F, 2, 3))
+    fchecks = np.empty((F, 1, 3))
+    for f in range(F):
+        nv = N[f]
+        ax = 0
+        for t in range(1, 3):
+            if abs(nv[t]) < abs(nv[ax]):
+                ax = t
+        axis = np.zeros(3)
+        axis[ax] = 1.0
+        u = np.empty(3)
+        u[0] = nv[1] * axis[2] - nv[2] * axis[1]
+        u[1] = nv[2] * axis[0] - nv[0] * axis[2]
+        u[2] = nv[0] * axis[1] - nv[1] * axis[0]
+        u /= np.sqrt(u[0] ** 2 + u[1] ** 2 + u[2] ** 2)
+        fdirs[f, 0] = u
+        fdirs[f, 1, 0] = nv[1] * u[2] - nv[2] * u[1]
+        fdirs[f, 1, 1] = nv[2] * u[0] - nv[0] * u[2]
+        fdirs[f, 1, 2] = nv[0] * u[1] - nv[1] * u[0]
+        fchecks[f, 0] = nv
+    ed, ec, em, ok_e = _face_classes(edirs, echecks)
+    fd, fc, fm, ok_f = _face_classes(fdirs, fchecks)
+    return V[extreme], N, offsets, ed, ec, em, fd, fc, fm, ok_e and ok_f and E > 1 and F > 1
+
+
+def solid_faces(V: np.ndarray, A: np.ndarray, b: np.ndarray, origin: np.ndarray,
+                scale: float, tol: float) -> tuple | None:
+    """
+    Return the faces of a solid (3D) polytope from its points and supporting rows, or None.
+
+    The compiled form of ``awp_ros.geometry.face_lattice`` for a 3D point set with its
+    H-rep (close points merged, facet rows, edges, their classes): the extreme points, unit
+    facet normals, offsets, and the (dirs, checks, mask) of the edge and facet classes.
+    None when the numpy code must decide (more than :data:`MAX_BITS` points, a hash
+    collision of two class keys, fewer than two edges or facets).
+    """
+    if V.shape[0] > MAX_BITS - 1:               # the reference's bit keys take 62 bits
+        return None
+    out = _solid_faces(np.ascontiguousarray(V, dtype=float),
+                       np.ascontiguousarray(A, dtype=float).reshape(-1, 3),
+                       np.ascontiguousarray(b, dtype=float).reshape(-1),
+                       np.ascontiguousarray(origin, dtype=float), float(scale), float(tol))
+    return out[:-1] if out[-1] else None
+
+
 def compile_all() -> None:
     """
     Compile (or load from the disk cache) every kernel on small inputs, once per process.
@@ -1800,6 +2041,7 @@ def compile_all() -> None:
                     np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1e-9)
     J = rng.normal(size=(2, 3, 3))
     parallelepipeds(J, g[:2, :3], -np.ones((2, 3)), np.ones((2, 3)), 1e-9)
+    solid_faces(cube, box, np.ones(6), np.zeros(3), float(np.sqrt(3.0)), 1e-9)
 
 
 if __name__ == '__main__':

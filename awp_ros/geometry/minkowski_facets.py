@@ -43,6 +43,7 @@ Large temporaries live in per-thread buffers reused across calls
 
 from __future__ import annotations
 
+from functools import lru_cache
 from itertools import permutations
 from math import comb
 
@@ -54,9 +55,11 @@ from awp_ros.geometry.linalg import workspace
 
 __all__ = ['FLOAT32_SLACK', 'facet_normals']
 
-# Bound on the float32 rounding of a check value (3), relative to ``bound``: with u = 6e-8
-# and q <= 20 products per value (inputs rounded, then summed in any order) the error is at
-# most (q + 1) u |O| |Y| <= 1.3e-6 bound; twice that is the smallest slack accepted.
+# Bound on the float32 rounding of a check value (3), relative to ``bound``: each value is a
+# float32 dot product of q <= 20 pairs of rounded float64 inputs (Y . O_j, or K . suffix with
+# K the contraction of Y with a prefix row, |K| <= |Y| |prefix| for a decomposable prefix),
+# so with u = 6e-8 the error is at most (q + 2) u |Y| |O_j| <= 1.32e-6 bound; the smallest
+# slack accepted is about twice that.
 FLOAT32_SLACK = 2.5e-6
 
 
@@ -87,9 +90,10 @@ def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
             Y = wedge_rows(checks.reshape(m * k * c, r), np.repeat(X, k * c, axis=0), r, 1, d)
             per_dim[d] = (X, Y.reshape(m, k, c, Y.shape[-1]), group.mask)
         lifted.append(per_dim)
-    scale = max(float(np.linalg.norm(Mk, 2)) for Mk in M)
+    # The largest singular value of any M_k (one batched 3x3 eigenproblem, not K SVDs).
+    scale = float(np.sqrt(np.linalg.eigvalsh(np.einsum('krd,kre->kde', M, M))[:, -1].max()))
     normals, count = [], 0
-    for dims, legs in _patterns(lifted, r - 1):
+    for dims, legs in _patterns(tuple(tuple(sorted(per_dim)) for per_dim in lifted), r - 1):
         sets = [_stack([lifted[k][d] for k in column], r, d)
                 for d, column in zip(dims, zip(*legs))]
         a, n = _pattern_normals(sets, dims, r, scale, cone_tol, normal_tol)
@@ -100,11 +104,14 @@ def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
     return np.vstack(normals), count
 
 
-def _patterns(lifted: list[dict], total: int) -> list[tuple[list[int], list[tuple]]]:
+@lru_cache(maxsize=64)
+def _patterns(lifted: tuple[tuple[int, ...], ...],
+              total: int) -> tuple[tuple[list[int], list[tuple]], ...]:
     """
     Return (dims, leg tuples): face dimensions in decreasing order adding up to ``total``.
 
-    Legs are distinct, and increasing within a run of equal dimensions (each face choice once).
+    ``lifted[k]`` lists the face dimensions leg ``k`` offers. Legs are distinct, and
+    increasing within a run of equal dimensions (each face choice once).
     """
     out = []
     available = sorted({d for per_dim in lifted for d in per_dim}, reverse=True)
@@ -124,7 +131,7 @@ def _patterns(lifted: list[dict], total: int) -> list[tuple[list[int], list[tupl
                         if dims[i] == dims[i + 1])]
         if legs:
             out.append((dims, legs))
-    return out
+    return tuple(out)
 
 
 def _stack(items: list[tuple], r: int, d: int) -> tuple[np.ndarray, ...]:
@@ -182,14 +189,29 @@ def _pattern_normals(sets: list, dims: list[int], r: int, scale: float, cone_tol
         k, c = Y.shape[2:4]
         if c == 0:
             continue
-        other = _wedge_into('fws_o', pre[j], suf[j], r, deg_pre[j], deg_suf[j])  # (B, N / n_j, .)
         T = wedge_table(r, r - 1 - dims[j], dims[j] + 1)[:, :, 0]
         T = T * (-1.0) ** (deg_pre[j] + (dims[j] + 1) * deg_suf[j])
-        rows = other.shape[1]
-        other32 = workspace('fws_o32', other.shape, np.float32)
-        other32[...] = other
-        OT = np.swapaxes(other32, 1, 2)               # (B, ., rows)
         Y = Y @ T.T                                   # pairs with O (not O @ T): smaller
+        # The value Y . O_j with O_j = prefix ^ suffix, O_s = sum_{u,t} pre_u suf_t W_uts, is
+        # sum_t K_t suf_t with K_t = sum_{u,s} Y_s pre_u W_uts. With fewer prefix rows than
+        # suffix rows, Y is contracted with each prefix row, then one float32 product pairs
+        # it with every suffix row (O_j, N / n_j rows, is never formed); else O_j is formed
+        # (the prefix then holds most rows: O_j is a copy of it when j is the last leg).
+        n_pre, n_suf = pre[j].shape[1], suf[j].shape[1]
+        rows = n_pre * n_suf
+        contract = n_pre < n_suf
+        if contract:
+            W = wedge_table(r, deg_pre[j], deg_suf[j])
+            cq = W.shape[1]
+            PT = (pre[j] @ W.reshape(W.shape[0], -1)).reshape(B, n_pre * cq, W.shape[2])
+            PT = np.swapaxes(PT, 1, 2)                # (B, C(r, 5 - d_j), n_pre cq)
+            right = workspace('fws_right', (B, cq, n_suf), np.float32)
+            right[...] = np.swapaxes(suf[j], 1, 2)
+        else:
+            other = _wedge_into('fws_o', pre[j], suf[j], r, deg_pre[j], deg_suf[j])
+            right = workspace('fws_right', (B, other.shape[2], rows), np.float32)
+            right[...] = np.swapaxes(other, 1, 2)
+            n_pre, n_suf = 1, rows                  # the pairing below, with K = Y
         # Slot i (the i-th parallel face of a class) exists for a prefix of the classes
         # (classes come sorted by size), so slot i > 0 only runs over that prefix.
         vmin = vmax = None
@@ -197,9 +219,11 @@ def _pattern_normals(sets: list, dims: list[int], r: int, scale: float, cone_tol
             m = ns[j] if i == 0 else int(mask[:, :, i].sum(axis=1).max())
             if m == 0:
                 break
-            Yi = Y[:, :m, i].transpose(0, 2, 1, 3).reshape(B, c * m, -1).astype(np.float32)
-            out = workspace(f'fws_vals{min(i, 1)}', (B, c * m, rows), np.float32)
-            vals = np.matmul(Yi, OT, out=out).reshape(B, c, m, rows)  # [b, check, class, row]
+            Yi = Y[:, :m, i].transpose(0, 2, 1, 3).reshape(B, c * m, -1)
+            K = workspace(f'fws_k{min(i, 1)}', (B, c * m * n_pre, right.shape[1]), np.float32)
+            K.reshape(B, c * m, -1)[...] = Yi @ PT if contract else Yi
+            out = workspace(f'fws_vals{min(i, 1)}', (B, c * m * n_pre, n_suf), np.float32)
+            vals = np.matmul(K, right, out=out).reshape(B, c, m, rows)  # [b, check, class, row]
             fmin = vals[:, 0]
             fmax = workspace(f'fws_fmax{min(i, 1)}', (B, m, rows), np.float32)
             fmax[...] = fmin

@@ -18,9 +18,9 @@ coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``r``, wh
 (2)-(3) the facet normals, by face combinations of the legs
     (:func:`awp_ros.geometry.minkowski_facets.facet_normals`): each is a generalised cross product
     of ``r - 1`` lifted face directions whose normal cones agree;
-(4) ``b = h_S(a)`` by (1) over all the given points, so each kept row is an exact supporting
-    halfspace whatever the tolerances (and whatever the face search found); rows are
-    deduplicated after rounding.
+(4) rows are deduplicated after rounding their normals (equal normals have equal offsets),
+    then ``b = h_S(a)`` by (1) over all the given points, so each kept row is an exact
+    supporting halfspace whatever the tolerances (and whatever the face search found).
 
 An empty leg makes ``S`` empty; no leg gives the point ``{0}``. For HyQ-like legs and 4
 legs this takes about 7-8 ms on one core (:mod:`awp_ros.geometry.minkowski_facets`).
@@ -104,8 +104,8 @@ def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
         adds redundant rows.
     :param normal_tol: a face choice whose unnormalised normal is shorter than this times its
         bound (the product of the lifted unit directions) is rank-deficient and skipped.
-    :param dedupe_decimals: rows equal after rounding ``a`` and ``b / scale`` to this many
-        decimals are merged.
+    :param dedupe_decimals: rows whose unit normals ``a`` are equal after rounding to this many
+        decimals are merged (their offsets ``h_S(a)`` are then equal to about that much).
     :return: a :class:`Polytope` with unit rows ``A`` in the hull's direction space, ``b``,
         ``hull_origin``, ``hull_basis``, ``dimension = r``; ``vertices`` are given for one
         leg (the lifted vertices) and for none ({0}), else (0, 6). ``meta`` holds
@@ -148,12 +148,11 @@ def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
     # flattening: mixing the two made an ill-conditioned H-rep overshoot S).
     Z = [(np.asarray(V, dtype=float) - F.origin) @ (F.basis @ F.basis.T) @ Mk.T
          for V, F, Mk in zip(vertex_sets, faces, M)]
-    b_r = _support(A_r, Z)
     kept = A_r.shape[0]
-    scale = sum(float(np.max(np.linalg.norm(z, axis=1))) for z in Z) or 1.0
-    first = _unique_rows(np.hstack([A_r, b_r[:, None] / scale]), dedupe_decimals)
-    A = A_r[first] @ U.T
-    b = b_r[first] + A @ origin
+    A_r = A_r[_unique_rows(A_r, dedupe_decimals)]      # equal normals: equal offsets (4)
+    b_r = _support(A_r, Z)
+    A = A_r @ U.T
+    b = b_r + A @ origin
     if len(faces) == 1:
         vertices = faces[0].vertices @ L[0].T
     else:
@@ -164,28 +163,37 @@ def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
 
 def _support(A_r: np.ndarray, Z: list[np.ndarray]) -> np.ndarray:
     """Return h(a) = sum_k max_v a . z_v for each row a of A_r (eq. 1, hull coordinates)."""
-    stacked = np.vstack(Z)
-    starts = np.cumsum([0] + [z.shape[0] for z in Z[:-1]])
+    h = np.zeros(A_r.shape[0])
     if A_r.shape[0] == 0:
-        return np.zeros(0)
-    return np.maximum.reduceat(A_r @ stacked.T, starts, axis=1).sum(axis=1)
+        return h
+    values = np.vstack(Z) @ A_r.T                 # (points, rows): each leg's block contiguous
+    start = 0
+    for z in Z:
+        if z.shape[0]:
+            h += values[start:start + z.shape[0]].max(axis=0)
+        start += z.shape[0]
+    return h
 
 
 def _unique_rows(X: np.ndarray, decimals: int) -> np.ndarray:
     """
     Return the sorted indices of the first of each group of rows equal after rounding.
 
-    Rows are hashed to one integer (a fast 1D unique); a hash collision between different
+    Rows are hashed to one integer (a fast 1D sort); a hash collision between different
     rounded rows is detected and then the exact row-wise unique is used.
     """
     if X.shape[0] == 0:
         return np.zeros(0, dtype=int)
-    q = np.round(X * 10.0 ** decimals).astype(np.int64)
+    q = np.rint(X * 10.0 ** decimals).astype(np.int64)
     weights = np.array([0x9E3779B97F4A7C15 >> (5 * i) for i in range(X.shape[1])],
                        dtype=np.uint64).astype(np.int64)
     with np.errstate(over='ignore'):
         key = q @ weights
-    _, first, inverse = np.unique(key, return_index=True, return_inverse=True)
-    if not np.array_equal(q, q[first[inverse]]):
+    order = np.argsort(key)
+    new = np.empty(key.size, dtype=bool)
+    new[0] = True
+    np.not_equal(key[order[1:]], key[order[:-1]], out=new[1:])
+    first = np.minimum.reduceat(order, np.flatnonzero(new))     # first index of each group
+    if not np.array_equal(q[order], q[first[np.cumsum(new) - 1]]):
         _, first = np.unique(q, axis=0, return_index=True)
     return np.sort(first)

@@ -500,3 +500,70 @@ def test_wrench_slice_equals_the_numpy_path_of_com_region():
                 assert fast.margin == pytest.approx(slow.margin, abs=1e-9)
                 fast_paths += slow.margin > 1e-6
     assert fast_paths >= 20
+
+
+def _faces_cases():
+    """
+    Return solid polytopes with their H-reps.
+
+    Random boxes cut by planes, a cube (parallel classes), one with duplicated points and
+    zero and redundant rows, a pyramid whose apex lies on five rows.
+    """
+    rng = np.random.default_rng(11)
+    cases = []
+    box = np.vstack([np.eye(3), -np.eye(3)])
+    for _ in range(40):                               # a box cut by random planes
+        A = rng.normal(size=(rng.integers(1, 8), 3))
+        A = np.vstack([box, A / np.linalg.norm(A, axis=1)[:, None]])
+        b = np.concatenate([2.0 * np.ones(6), rng.uniform(0.5, 2.0, size=A.shape[0] - 6)])
+        scale = rng.uniform(0.5, 3.0, size=(A.shape[0], 1))
+        cases.append((kernels.leg_vertices(A, b), A * scale, b * scale[:, 0]))
+    cube = kernels.leg_vertices(box, np.ones(6))
+    cases.append((cube, box, np.ones(6)))
+    cases.append((np.vstack([cube, cube[:3] + 1e-13]), np.vstack([box, np.zeros(3), box[:2]]),
+                  np.concatenate([np.ones(6), [1.0], 3.0 * np.ones(2)])))
+    mu = 0.7
+    pyramid = np.array([[1, 0, -mu], [-1, 0, -mu], [0, 1, -mu], [0, -1, -mu], [0, 0, -1],
+                        [0, 0, 1.0]])
+    h = np.array([0, 0, 0, 0, 0, 2.0])
+    cases.append((kernels.leg_vertices(pyramid, h), pyramid, h))
+    return cases
+
+
+def test_solid_faces_equal_the_numpy_reference():
+    """Same points, normals, offsets, classes, slots and masks as face_lattice's numpy code."""
+    from awp_ros.geometry.face_lattice import polytope_faces
+    for V, A, b in _faces_cases():
+        fast = polytope_faces(V, (A, b))
+        ref = _numpy(polytope_faces, V, (A, b))
+        assert fast.dimension == ref.dimension == 3
+        np.testing.assert_allclose(fast.vertices, ref.vertices, atol=1e-12)
+        np.testing.assert_allclose(fast.facet_normals, ref.facet_normals, atol=1e-12)
+        np.testing.assert_allclose(fast.facet_offsets, ref.facet_offsets, atol=1e-12)
+        for g_fast, g_ref in zip(fast.groups, ref.groups, strict=True):
+            np.testing.assert_array_equal(g_fast.mask, g_ref.mask)
+            np.testing.assert_allclose(g_fast.dirs, g_ref.dirs, atol=1e-12)
+            np.testing.assert_allclose(g_fast.checks, g_ref.checks, atol=1e-12)
+
+
+def test_solid_faces_are_the_hull_facets_and_edges():
+    """The definition, by qhull: facets (coplanar triangles merged) and the polytope's edges."""
+    for V, A, b in _faces_cases():
+        out = kernels.solid_faces(V, A, b, V.mean(axis=0), 1.0, 1e-9)
+        extreme, N, offsets, edge_dirs, _, edge_mask, _, _, facet_mask = out
+        hull = ConvexHull(np.unique(np.round(V, 9), axis=0))     # duplicates merged
+        planes = hull.equations                        # triangles: each facet once or more
+        assert N.shape[0] == facet_mask.sum()
+        gap = np.linalg.norm(np.column_stack([N, -offsets])[:, None] - planes[None], axis=2)
+        assert gap.min(axis=1).max() < 1e-6 and gap.min(axis=0).max() < 1e-6
+        assert np.all(np.triu(np.linalg.norm(N[:, None] - N[None], axis=2) > 1e-6, 1)
+                      | np.tri(N.shape[0], dtype=bool))          # no facet twice
+        assert extreme.shape[0] == hull.vertices.size
+        # Euler: V - E + F = 2 (edges counted over their classes' slots)
+        assert extreme.shape[0] - edge_mask.sum() + N.shape[0] == 2
+        assert np.allclose(np.linalg.norm(edge_dirs[:, 0], axis=1), 1.0)
+
+
+def test_solid_faces_leave_large_point_sets_to_numpy():
+    V = np.random.default_rng(0).normal(size=(63, 3))
+    assert kernels.solid_faces(V, np.eye(3), np.ones(3), V.mean(axis=0), 1.0, 1e-9) is None
