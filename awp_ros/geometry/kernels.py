@@ -27,7 +27,9 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
   region by exact iterative projection of the contact-force LP (a small dense simplex);
 * :func:`parallelepipeds`: the force parallelepipeds of 3-joint legs (inverse by cofactors);
 * :func:`solid_faces`: the faces and normal cones of a solid leg polytope from its points and
-  H-rep (facet rows, edges, their classes), for the FWS's Minkowski sum.
+  H-rep (facet rows, edges, their classes), for the FWS's Minkowski sum;
+* :func:`survivor_normals`: the unit normals of the FWS's face choices that passed the
+  normal-cone filter (a sparse wedge, the Hodge dual, the norm).
 
 Each is measured beside its numpy code, interleaved in one process, by ``awp_bench
 --kernels`` (the README's speed section has the figures).
@@ -63,7 +65,7 @@ __all__ = [
     'cross_products', 'flat_cone_facets',
     'feasible_region', 'flat_zonotope_facets', 'leg_vertices', 'lifted_rays', 'lifted_zonotope',
     'parallelepipeds', 'polar_hull', 'polygon_region', 'projected_polygon', 'solid_faces',
-    'wedge_tables',
+    'sparse_wedge_table', 'survivor_normals', 'wedge_tables',
     'wrench_slice', 'zonotope_facets']
 
 #: Whether the compiled kernels are used (numba importable and not disabled).
@@ -2000,6 +2002,71 @@ def solid_faces(V: np.ndarray, A: np.ndarray, b: np.ndarray, origin: np.ndarray,
     return out[:-1] if out[-1] else None
 
 
+# -- Facet normals of the FWS's face choices (awp_ros.geometry.minkowski_facets) -------------
+
+@lru_cache(maxsize=32)
+def sparse_wedge_table(r: int, p: int, q: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Return the nonzero entries ``(I, J, sign)`` of the wedge table, grouped by output.
+
+    Entry ``t`` adds ``sign[t] x_{I[t]} y_{J[t]}`` to output coordinate ``t // C(p + q, p)``
+    (each has ``C(p + q, p)`` terms): eq. (1) of :mod:`awp_ros.geometry.exterior`.
+    """
+    T = wedge_table(r, p, q)
+    i, j, s = np.nonzero(T)
+    order = np.argsort(s, kind='stable')
+    return i[order].astype(np.int64), j[order].astype(np.int64), T[i, j, s][order]
+
+
+@_jit
+def _survivor_normals(P, X, batch, row, col, first, second, sign, r, flip_from, min_norm):
+    n = batch.shape[0]
+    per = first.shape[0] // r
+    out = np.empty((n, r))
+    kept = 0
+    W = np.empty(r)
+    for t in range(n):
+        p, x = P[batch[t], row[t]], X[batch[t], col[t]]
+        e = 0
+        for s in range(r):
+            acc = 0.0
+            for _ in range(per):
+                acc += sign[e] * p[first[e]] * x[second[e]]
+                e += 1
+            W[s] = acc
+        norm = 0.0
+        for s in range(r):
+            norm += W[s] * W[s]
+        norm = np.sqrt(norm)
+        if not norm > min_norm:
+            continue
+        scale = (-1.0 if t >= flip_from else 1.0) / norm
+        for i in range(r):                            # n_i = (-1)^i W_{[r] - i}
+            out[kept, i] = W[r - 1 - i] * scale * (1.0 - 2.0 * (i % 2))
+        kept += 1
+    return out[:kept].copy()
+
+
+def survivor_normals(P: np.ndarray, X: np.ndarray, batch: np.ndarray, row: np.ndarray,
+                     col: np.ndarray, p: int, q: int, flip_from: int,
+                     min_norm: float) -> np.ndarray:
+    r"""
+    Return the unit normals of chosen face combinations: ``a = *(P_{b,i} ^ X_{b,j})``.
+
+    ``P`` (B, n_p, C(r, p)) holds wedges of all legs' face directions but the last,
+    ``X`` (B, n_x, C(r, q)) the last leg's, ``p + q = r - 1``; choice ``t`` pairs
+    ``P[batch[t], row[t]]`` with ``X[batch[t], col[t]]``. Choices from ``flip_from`` on get
+    the opposite sign; those whose normal is not longer than ``min_norm`` (rank-deficient)
+    are dropped. The numpy form: ``hodge_normal(wedge_rows(P[batch, row], X[batch, col]))``.
+    """
+    r = p + q + 1
+    first, second, sign = sparse_wedge_table(r, p, q)
+    return _survivor_normals(np.ascontiguousarray(P, dtype=float),
+                             np.ascontiguousarray(X, dtype=float),
+                             batch.astype(np.int64), row.astype(np.int64), col.astype(np.int64),
+                             first, second, sign, r, int(flip_from), float(min_norm))
+
+
 def compile_all() -> None:
     """
     Compile (or load from the disk cache) every kernel on small inputs, once per process.
@@ -2042,6 +2109,9 @@ def compile_all() -> None:
     J = rng.normal(size=(2, 3, 3))
     parallelepipeds(J, g[:2, :3], -np.ones((2, 3)), np.ones((2, 3)), 1e-9)
     solid_faces(cube, box, np.ones(6), np.zeros(3), float(np.sqrt(3.0)), 1e-9)
+    index = np.zeros(1, dtype=np.int64)
+    survivor_normals(rng.normal(size=(1, 1, 15)), g.T[None, :1], index, index, index, 4, 1, 1,
+                     0.0)
 
 
 if __name__ == '__main__':

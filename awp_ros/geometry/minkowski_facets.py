@@ -49,6 +49,7 @@ from math import comb
 
 import numpy as np
 
+from awp_ros.geometry import kernels
 from awp_ros.geometry.exterior import hodge_normal, wedge_all, wedge_rows, wedge_table
 from awp_ros.geometry.face_lattice import Faces
 from awp_ros.geometry.linalg import workspace
@@ -88,14 +89,17 @@ def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
             checks = group.checks @ Mk.T            # (m, k, c, r)
             m, k, c = checks.shape[:3]
             Y = wedge_rows(checks.reshape(m * k * c, r), np.repeat(X, k * c, axis=0), r, 1, d)
+            # In the form that pairs with the other legs' wedge O (3), up to a sign.
+            Y = Y @ wedge_table(r, r - 1 - d, d + 1)[:, :, 0].T
             per_dim[d] = (X, Y.reshape(m, k, c, Y.shape[-1]), group.mask)
         lifted.append(per_dim)
     # The largest singular value of any M_k (one batched 3x3 eigenproblem, not K SVDs).
     scale = float(np.sqrt(np.linalg.eigvalsh(np.einsum('krd,kre->kde', M, M))[:, -1].max()))
+    stacked = {d: _stack([per_dim.get(d) for per_dim in lifted], r, d)
+               for d in {d for per_dim in lifted for d in per_dim}}
     normals, count = [], 0
     for dims, legs in _patterns(tuple(tuple(sorted(per_dim)) for per_dim in lifted), r - 1):
-        sets = [_stack([lifted[k][d] for k in column], r, d)
-                for d, column in zip(dims, zip(*legs))]
+        sets = [_select(stacked[d], column) for d, column in zip(dims, zip(*legs))]
         a, n = _pattern_normals(sets, dims, r, scale, cone_tol, normal_tol)
         normals.append(a)
         count += n
@@ -134,20 +138,34 @@ def _patterns(lifted: tuple[tuple[int, ...], ...],
     return tuple(out)
 
 
-def _stack(items: list[tuple], r: int, d: int) -> tuple[np.ndarray, ...]:
-    """Stack the (X, Y, mask) of several legs into a batch, padding with empty classes."""
-    n = max(item[0].shape[0] for item in items)
-    k = max(item[1].shape[1] for item in items)
-    c = max(item[1].shape[2] for item in items)
+def _stack(items: list[tuple | None], r: int, d: int) -> tuple[np.ndarray, ...]:
+    """
+    Stack the (X, Y, mask) of every leg into one batch, padding with empty classes.
+
+    Returns ``(X, Y, mask, sizes)``, ``sizes`` (K, 3) the class, slot and check counts of
+    each leg (0 for a leg without faces of dimension ``d``, None in ``items``).
+    """
+    sizes = np.array([(0, 0, 0) if item is None else item[1].shape[:3] for item in items])
+    n, k, c = sizes.max(axis=0)
     B = len(items)
     Xb = np.zeros((B, n, comb(r, d)))
     Yb = np.zeros((B, n, k, c, comb(r, d + 1)))
     mb = np.zeros((B, n, k), dtype=bool)
-    for b, (X, Y, mask) in enumerate(items):
-        Xb[b, :X.shape[0]] = X
-        Yb[b, :Y.shape[0], :Y.shape[1], :Y.shape[2]] = Y
-        mb[b, :mask.shape[0], :mask.shape[1]] = mask
-    return Xb, Yb, mb
+    for b, item in enumerate(items):
+        if item is not None:
+            X, Y, mask = item
+            Xb[b, :X.shape[0]] = X
+            Yb[b, :Y.shape[0], :Y.shape[1], :Y.shape[2]] = Y
+            mb[b, :mask.shape[0], :mask.shape[1]] = mask
+    return Xb, Yb, mb, sizes
+
+
+def _select(stacked: tuple[np.ndarray, ...], legs: tuple[int, ...]) -> tuple[np.ndarray, ...]:
+    """Return the batch of some legs, padded only to their own largest counts."""
+    Xb, Yb, mb, sizes = stacked
+    legs = list(legs)
+    n, k, c = sizes[legs].max(axis=0)
+    return Xb[legs, :n], Yb[legs, :n, :k, :c], mb[legs, :n, :k]
 
 
 def _pattern_normals(sets: list, dims: list[int], r: int, scale: float, cone_tol: float,
@@ -189,9 +207,7 @@ def _pattern_normals(sets: list, dims: list[int], r: int, scale: float, cone_tol
         k, c = Y.shape[2:4]
         if c == 0:
             continue
-        T = wedge_table(r, r - 1 - dims[j], dims[j] + 1)[:, :, 0]
-        T = T * (-1.0) ** (deg_pre[j] + (dims[j] + 1) * deg_suf[j])
-        Y = Y @ T.T                                   # pairs with O (not O @ T): smaller
+        sign = (-1.0) ** (deg_pre[j] + (dims[j] + 1) * deg_suf[j])   # Y pairs with O up to it
         # The value Y . O_j with O_j = prefix ^ suffix, O_s = sum_{u,t} pre_u suf_t W_uts, is
         # sum_t K_t suf_t with K_t = sum_{u,s} Y_s pre_u W_uts. With fewer prefix rows than
         # suffix rows, Y is contracted with each prefix row, then one float32 product pairs
@@ -221,7 +237,7 @@ def _pattern_normals(sets: list, dims: list[int], r: int, scale: float, cone_tol
                 break
             Yi = Y[:, :m, i].transpose(0, 2, 1, 3).reshape(B, c * m, -1)
             K = workspace(f'fws_k{min(i, 1)}', (B, c * m * n_pre, right.shape[1]), np.float32)
-            K.reshape(B, c * m, -1)[...] = Yi @ PT if contract else Yi
+            K.reshape(B, c * m, -1)[...] = sign * (Yi @ PT if contract else Yi)
             out = workspace(f'fws_vals{min(i, 1)}', (B, c * m * n_pre, n_suf), np.float32)
             vals = np.matmul(K, right, out=out).reshape(B, c, m, rows)  # [b, check, class, row]
             fmin = vals[:, 0]
@@ -255,6 +271,10 @@ def _pattern_normals(sets: list, dims: list[int], r: int, scale: float, cone_tol
     # Normals of the survivors only: W = prefix_{<J-1} ^ X_{J-1}, a_i = (-1)^i W_{[r] - i}.
     idx = np.concatenate([pos, neg])
     b, rest = idx // N, idx % N
+    if kernels.ENABLED:             # compiled, one call (the numpy code below is its reference)
+        return kernels.survivor_normals(pre[J - 1], Xs[-1], b, rest // ns[-1], rest % ns[-1],
+                                        deg_pre[J - 1], dims[-1], pos.size,
+                                        normal_tol * bound), B * N
     W = wedge_rows(pre[J - 1][b, rest // ns[-1]], Xs[-1][b, rest % ns[-1]], r,
                    deg_pre[J - 1], dims[-1])
     a = hodge_normal(W)

@@ -567,3 +567,42 @@ def test_solid_faces_are_the_hull_facets_and_edges():
 def test_solid_faces_leave_large_point_sets_to_numpy():
     V = np.random.default_rng(0).normal(size=(63, 3))
     assert kernels.solid_faces(V, np.eye(3), np.ones(3), V.mean(axis=0), 1.0, 1e-9) is None
+
+
+@pytest.mark.parametrize('K', [3, 4])
+def test_fws_facets_equal_the_numpy_reference(K):
+    """The FWS with every kernel on (faces, survivors' normals) equals the numpy code's."""
+    from cases import hyq_feet, hyq_like_leg
+    from awp_ros.wrench.feasible_wrench_set import minkowski_sum_of_lifts
+    rng = np.random.default_rng(20 + K)
+    for _ in range(3):
+        feet, legs = hyq_feet(rng, K), [hyq_like_leg(rng) for _ in range(K)]
+        fast = minkowski_sum_of_lifts(feet, legs)
+        ref = _numpy(minkowski_sum_of_lifts, feet, legs)
+        assert fast.meta == ref.meta and fast.A.shape == ref.A.shape
+        rows = np.column_stack([fast.A, fast.b / 1e3])
+        rows_ref = np.column_stack([ref.A, ref.b / 1e3])
+        gap = np.linalg.norm(rows[:, None] - rows_ref[None], axis=2)
+        assert gap.min(axis=1).max() < 1e-9 and gap.min(axis=0).max() < 1e-9
+
+
+def test_survivor_normals_are_unit_and_orthogonal_to_the_faces():
+    """The definition: a unit normal orthogonal to the r - 1 lifted directions, sign flipped."""
+    rng = np.random.default_rng(4)
+    V = rng.normal(size=(3, 5, 6))                    # per batch, 5 vectors of R^6
+    from awp_ros.geometry.exterior import wedge_rows
+    P = V[:, 0]
+    for i in range(1, 4):
+        P = wedge_rows(P, V[:, i], 6, i, 1)           # (3, 15): the first four vectors
+    X = rng.normal(size=(3, 7, 6))
+    batch, row, col = np.array([0, 1, 2, 2]), np.zeros(4, dtype=int), np.array([0, 3, 6, 1])
+    a = kernels.survivor_normals(P[:, None], X, batch, row, col, 4, 1, 2, 0.0)
+    np.testing.assert_allclose(np.linalg.norm(a, axis=1), 1.0)
+    for t in range(4):
+        span = np.vstack([V[batch[t], :4], X[batch[t], col[t]]])
+        assert np.abs(span @ a[t]).max() < 1e-12
+        sign = np.linalg.det(np.vstack([a[t], span])) * (-1.0 if t >= 2 else 1.0)
+        assert sign > 0.0                              # det[a, b_1..b_5] > 0 before the flip
+    degenerate = kernels.survivor_normals(P[:, None], V[:, 3:4], np.array([0]), np.zeros(1, int),
+                                          np.zeros(1, int), 4, 1, 0, 1e-9)
+    assert degenerate.shape == (0, 6)                 # a vector already in the span: dropped
