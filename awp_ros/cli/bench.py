@@ -199,7 +199,7 @@ def stream_times(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 0
         base.joint_positions = q
         out['stream_total'][i] = evaluator.evaluate(base, fws=False).timings_ms['total']
     if fws:
-        # A second walk: the FWS's ~7 ms between two cycles evicts the caches, so timing
+        # A second walk: the FWS's ~4 ms between two cycles evicts the caches, so timing
         # both in one walk would time a cold per-cycle evaluation (~1.5x slower).
         out['stream_fws'] = np.zeros(samples)
         for i, q in enumerate(walk):

@@ -1,7 +1,7 @@
 """
 Compute the node's FWS in a worker process, off the joint-state loop (``fws_lag_s`` > 0).
 
-The FWS costs ~9 ms here (its H-rep, directional and Euclidean margins; ``awp_bench``
+The FWS costs ~4 ms here (its H-rep, directional and Euclidean margins; ``awp_bench``
 ``fws_ms``), more on slower machines: computed in the loop it stalls the stream by that much at
 every FWS. With ``fws_lag_s`` > 0 the pipeline
 (:class:`awp_ros.ros.pipeline.Pipeline`) hands each FWS job (the arguments of

@@ -47,7 +47,7 @@ def yield_to_node(pid: int) -> None:
     Lower a worker process's CPU priority to the node's plus :data:`NICE` (``setpriority``).
 
     The workers (markers, FWS) run in the node's session, so the scheduler weighs them
-    against the node: at +10 a worker busy for a whole FWS (~7 ms), or importing at
+    against the node: at +10 a worker busy for a whole FWS (~4 ms), or importing at
     startup, no longer delays joint states queued behind it on two shared cores, and it
     still gets every idle cycle. Called by the node right after the worker started (its
     threads, created later, inherit it); a no-op where not available or permitted.

@@ -23,7 +23,7 @@ coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``r``, wh
     supporting halfspace whatever the tolerances (and whatever the face search found).
 
 An empty leg makes ``S`` empty; no leg gives the point ``{0}``. For HyQ-like legs and 4
-legs this takes about 7-8 ms on one core (:mod:`awp_ros.geometry.minkowski_facets`).
+legs this takes about 3.5 ms on one core (:mod:`awp_ros.geometry.minkowski_facets`).
 
 Without the H-rep, :func:`awp_ros.wrench.fws_queries.lp_directional_margins` answers membership and
 the 12 directional margins exactly by warm-started LPs (about 1 ms for HyQ's 4 legs).
