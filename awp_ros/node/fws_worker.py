@@ -2,9 +2,9 @@
 Compute the node's FWS in a worker process, off the joint-state loop (``fws_lag_s`` > 0).
 
 The FWS costs ~4 ms here (its H-rep, directional and Euclidean margins; ``awp_bench``
-``fws_ms``), more on slower machines: computed in the loop it stalls the stream by that much at
-every FWS. With ``fws_lag_s`` > 0 the pipeline
-(:class:`awp_ros.ros.pipeline.Pipeline`) hands each FWS job (the arguments of
+``fws_ms`` + ``fws_directional_ms`` + ``fws_margin_step_ms``), more on slower machines:
+computed in the loop it stalls the stream by that much at every FWS. With ``fws_lag_s`` > 0
+the pipeline (:class:`awp_ros.ros.pipeline.Pipeline`) hands each FWS job (the arguments of
 :func:`awp_ros.evaluation.evaluator.compute_fws`: feet [m], friction-bounded force polytopes
 [N], the wrench [N, N.m], tolerances) to :class:`FwsWorker`, which pickles it to a process of
 its own (``python -m awp_ros.node.fws_worker``, a fresh interpreter with one BLAS thread, no
