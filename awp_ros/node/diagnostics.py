@@ -51,6 +51,9 @@ __all__ = ['NodeDiagnostics']
 _WARNING, _ERROR = 1, 4
 _MAX_LEGS = 16            # stance sizes counted per period (larger ones in the last bin)
 _REASON_CHARS = 200       # characters of a reason quoted in a status message
+#: An FWS in the joint-state loop longer than this many joint_states periods is named in the
+#: evaluation status's message: the reports after it queue behind it (the latency tail).
+FWS_LOOP_PERIODS = 2.0
 
 
 class _Ring:
@@ -130,6 +133,8 @@ class NodeDiagnostics:
         self.reports_period = np.zeros(len(STATUS_NAMES), dtype=np.int64)
         self.compute_ms = _Ring(ring_size)
         self.latency_ms = _Ring(ring_size)
+        #: Wall time of each FWS computed in the joint-state loop (``fws_lag_s`` = 0) [ms].
+        self.fws_loop_ms = _Ring(256)
         self.stance_period = np.zeros(_MAX_LEGS + 1, dtype=np.int64)
         self.period_start: float | None = None
         self.last_reason = ''
@@ -255,6 +260,10 @@ class NodeDiagnostics:
         if stance_legs is not None:
             self.stance_period[min(int(stance_legs), _MAX_LEGS)] += 1
 
+    def fws_in_loop(self, ms: float) -> None:
+        """Count one FWS computed in the joint-state loop, ``ms`` [ms] of wall time."""
+        self.fws_loop_ms.add(ms)
+
     def output_failed(self, reason: str) -> None:
         """Count one output message (polytopes, markers) that could not be built."""
         self.output_errors += 1
@@ -284,6 +293,7 @@ class NodeDiagnostics:
         self.output_errors_period = 0
         self.compute_ms.clear()
         self.latency_ms.clear()
+        self.fws_loop_ms.clear()
         return msg
 
     def _inputs_status(self, wall: float, dt: float | None) -> DiagnosticStatus:
@@ -369,7 +379,10 @@ class NodeDiagnostics:
         values += [KeyValue(key=f'reports {name} (total)', value=str(int(n)))
                    for name, n in zip(STATUS_NAMES.values(), self.reports_total)]
         legs = ', '.join(f'{k}:{int(n)}' for k, n in enumerate(self.stance_period) if n)
-        values += [KeyValue(key='compute time p50 [ms]', value=f'{c50:.3f}'),
+        fws_n, (fws_max,) = self.fws_loop_ms.n, self.fws_loop_ms.percentiles([100])
+        values += [KeyValue(key='FWS in the loop (period)', value=str(fws_n)),
+                   KeyValue(key='FWS in the loop max [ms]', value=f'{fws_max:.3f}'),
+                   KeyValue(key='compute time p50 [ms]', value=f'{c50:.3f}'),
                    KeyValue(key='compute time p99 [ms]', value=f'{c99:.3f}'),
                    KeyValue(key='latency stamp to publish p50 [ms]', value=f'{l50:.3f}'),
                    KeyValue(key='latency stamp to publish p99 [ms]', value=f'{l99:.3f}'),
@@ -406,6 +419,11 @@ class NodeDiagnostics:
             level = DiagnosticStatus.WARN
         else:
             level, texts = DiagnosticStatus.OK, [f'{n} reports']
+            if fws_n and fws_max > FWS_LOOP_PERIODS * period_ms:
+                # Not a fault (the stream keeps up): where the latency tail comes from.
+                texts.append(f'the FWS in the loop took up to {fws_max:.1f} ms, '
+                             f'{fws_max / period_ms:.0f} joint_states periods: the joint states '
+                             'after it wait for it (fws_lag_s > 0 computes it beside the loop)')
         return DiagnosticStatus(level=level, name=f'{self.node_name}: evaluation',
                                 message='; '.join(texts), hardware_id=self.hardware_id,
                                 values=values)

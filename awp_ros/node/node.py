@@ -102,6 +102,9 @@ __all__ = ['AwpNode', 'SUBSCRIBERS_PERIOD_S', 'main']
 
 #: How often [s] the node asks which outputs have subscribers (:meth:`AwpNode._subscribed`).
 SUBSCRIBERS_PERIOD_S = 0.02
+#: The timings [ms] of an FWS computed in the loop (its H-rep, margins and feasible region),
+#: whose sum goes to ``/diagnostics`` (``FWS in the loop max [ms]``).
+FWS_TIMINGS = ('fws', 'fws_directional', 'fws_margin', 'feasible_region')
 
 
 class AwpNode(Node):
@@ -399,6 +402,9 @@ class AwpNode(Node):
         self.diagnostics.evaluated(cycle.status, cycle.compute_time, self._latency(msg),
                                    cycle.status_message,
                                    None if cycle.result is None else len(cycle.result.stance))
+        if cycle.fws_computed and cycle.result is not None:      # in the loop (fws_lag_s 0)
+            tm = cycle.result.timings_ms
+            self.diagnostics.fws_in_loop(sum(tm.get(k, 0.0) for k in FWS_TIMINGS))
 
     def _subscribed(self) -> frozenset:
         """

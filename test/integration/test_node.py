@@ -589,6 +589,12 @@ def test_one_report_per_joint_state_at_1khz(run_node, evaluator):
     assert got == stamps                                      # and in order
     status = np.bincount([m.status for m in peer.got['report']], minlength=5)
     assert status[FeasibilityReport.STATUS_OK] == n, status
+    # The FWS in the loop (10 Hz by stamps) is timed in /diagnostics, period by period.
+    with peer.lock:
+        fws_ms = [float(kv.value) for arr in peer.diag for s in arr.status
+                  if s.name == 'awp_node: evaluation' for kv in s.values
+                  if kv.key == 'FWS in the loop max [ms]']
+    assert sum(x > 0.1 for x in fws_ms) >= 5, fws_ms
     print(f'\n1 kHz drive: {n} joint states at {sent_rate:.0f} Hz, {len(got)} reports, '
           f'compute p50 {1e3 * np.median([m.compute_time for m in peer.got["report"]]):.2f}'
           f' ms', file=sys.stderr)

@@ -136,3 +136,24 @@ def test_a_second_publisher_before_its_matched_event_is_no_false_gap():
     assert [d.sequence('joint_states', s) for s in seqs] == [0] * len(seqs)
     assert d.sequence('joint_states', 106) == 2      # 104, 105 of the first: a real gap
     assert d.inputs['joint_states'].gaps == 2
+
+
+def test_an_fws_in_the_loop_longer_than_two_periods_is_named_but_not_a_fault():
+    """1 kHz joint states: a 4 ms FWS in the loop is named (with fws_lag_s), a 1.5 ms one not."""
+    d = NodeDiagnostics('awp_node', 'hyq', ['joint_states'])
+    d.build(Time(), wall=0.0)
+    for k, (fws_ms, named) in enumerate(((4.2, True), (1.5, False), (None, False))):
+        for i in range(1000):
+            d.received('joint_states', k + i * 1e-3)
+            d.evaluated(0, compute_time_s=3e-4, latency_s=6e-4)
+            if fws_ms is not None and i % 100 == 0:
+                d.fws_in_loop(fws_ms if i == 500 else 1.0)
+        evaluation = d.build(Time(), wall=k + 1.0).status[1]
+        v = _values(evaluation)
+        assert evaluation.level == DiagnosticStatus.OK, evaluation.message
+        assert v['FWS in the loop (period)'] == ('10' if fws_ms else '0')
+        if fws_ms:
+            assert float(v['FWS in the loop max [ms]']) == fws_ms
+        assert ('the FWS in the loop took up to 4.2 ms, 4 joint_states periods'
+                in evaluation.message) == named, evaluation.message
+        assert ('fws_lag_s' in evaluation.message) == named
