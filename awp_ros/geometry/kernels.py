@@ -2047,6 +2047,39 @@ def _survivor_normals(P, X, batch, row, col, first, second, sign, r, flip_from, 
     return out[:kept].copy()
 
 
+# The FWS's most frequent case, (r, p, q) = (6, 4, 1) (all four-leg patterns but (3, 2)): its
+# table as constants of the kernel below, whose loops then run over fixed indices (about 4x
+# faster than the general kernel's table lookups, with the same arithmetic in the same order).
+_FIRST_641, _SECOND_641, _SIGN_641 = sparse_wedge_table(6, 4, 1)
+
+
+@_jit
+def _survivor_normals_641(P, X, batch, row, col, flip_from, min_norm):
+    n = batch.shape[0]
+    out = np.empty((n, 6))
+    kept = 0
+    W = np.empty(6)
+    for t in range(n):
+        p, x = P[batch[t], row[t]], X[batch[t], col[t]]
+        for s in range(6):
+            acc = 0.0
+            for k in range(5):
+                e = 5 * s + k
+                acc += _SIGN_641[e] * p[_FIRST_641[e]] * x[_SECOND_641[e]]
+            W[s] = acc
+        norm = 0.0
+        for s in range(6):
+            norm += W[s] * W[s]
+        norm = np.sqrt(norm)
+        if not norm > min_norm:
+            continue
+        scale = (-1.0 if t >= flip_from else 1.0) / norm
+        for i in range(6):                            # n_i = (-1)^i W_{[r] - i}
+            out[kept, i] = W[5 - i] * scale * (1.0 - 2.0 * (i % 2))
+        kept += 1
+    return out[:kept].copy()
+
+
 def survivor_normals(P: np.ndarray, X: np.ndarray, batch: np.ndarray, row: np.ndarray,
                      col: np.ndarray, p: int, q: int, flip_from: int,
                      min_norm: float) -> np.ndarray:
@@ -2060,11 +2093,13 @@ def survivor_normals(P: np.ndarray, X: np.ndarray, batch: np.ndarray, row: np.nd
     are dropped. The numpy form: ``hodge_normal(wedge_rows(P[batch, row], X[batch, col]))``.
     """
     r = p + q + 1
+    P, X = np.ascontiguousarray(P, dtype=float), np.ascontiguousarray(X, dtype=float)
+    batch, row, col = batch.astype(np.int64), row.astype(np.int64), col.astype(np.int64)
+    if (r, p, q) == (6, 4, 1):
+        return _survivor_normals_641(P, X, batch, row, col, int(flip_from), float(min_norm))
     first, second, sign = sparse_wedge_table(r, p, q)
-    return _survivor_normals(np.ascontiguousarray(P, dtype=float),
-                             np.ascontiguousarray(X, dtype=float),
-                             batch.astype(np.int64), row.astype(np.int64), col.astype(np.int64),
-                             first, second, sign, r, int(flip_from), float(min_norm))
+    return _survivor_normals(P, X, batch, row, col, first, second, sign, r, int(flip_from),
+                             float(min_norm))
 
 
 def compile_all() -> None:
@@ -2112,6 +2147,8 @@ def compile_all() -> None:
     index = np.zeros(1, dtype=np.int64)
     survivor_normals(rng.normal(size=(1, 1, 15)), g.T[None, :1], index, index, index, 4, 1, 1,
                      0.0)
+    survivor_normals(rng.normal(size=(1, 1, 20)), rng.normal(size=(1, 1, 15)), index, index,
+                     index, 3, 2, 1, 0.0)                   # the general kernel
 
 
 if __name__ == '__main__':

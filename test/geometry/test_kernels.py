@@ -606,3 +606,30 @@ def test_survivor_normals_are_unit_and_orthogonal_to_the_faces():
     degenerate = kernels.survivor_normals(P[:, None], V[:, 3:4], np.array([0]), np.zeros(1, int),
                                           np.zeros(1, int), 4, 1, 0, 1e-9)
     assert degenerate.shape == (0, 6)                 # a vector already in the span: dropped
+
+
+@pytest.mark.parametrize('p,q', [(4, 1), (3, 2), (3, 1)])
+def test_survivor_normals_equal_the_numpy_reference_and_the_general_kernel(p, q):
+    """
+    Every (p, q) against ``hodge_normal(wedge_rows(...))``; (6, 4, 1) has a kernel of its own.
+
+    Its loops run over constant indices: its normals must equal the general kernel's bit for
+    bit (same products, same order), and both the numpy reference's to rounding.
+    """
+    from math import comb
+    from awp_ros.geometry.exterior import hodge_normal, wedge_rows
+    r = p + q + 1
+    rng = np.random.default_rng(p * 10 + q)
+    P = rng.normal(size=(3, 40, comb(r, p)))
+    X = rng.normal(size=(3, 9, comb(r, q)))
+    n = 500
+    batch, row, col = rng.integers(0, 3, n), rng.integers(0, 40, n), rng.integers(0, 9, n)
+    a = kernels.survivor_normals(P, X, batch, row, col, p, q, 300, 0.0)
+    first, second, sign = kernels.sparse_wedge_table(r, p, q)
+    general = kernels._survivor_normals(P, X, batch, row, col, first, second, sign, r, 300, 0.0)
+    assert np.array_equal(a, general)
+    W = wedge_rows(P[batch, row], X[batch, col], r, p, q)
+    ref = hodge_normal(W)
+    ref /= np.linalg.norm(ref, axis=1)[:, None]
+    ref[300:] *= -1.0
+    np.testing.assert_allclose(a, ref, atol=1e-12)
