@@ -42,6 +42,9 @@ class SoakResult:
     node_lost_total: int | None = None
     node_missing_from_sequence: int | None = None
     node_compute_p50_ms: float | None = None
+    #: The node's FWS computed in the joint-state loop, from its /diagnostics periods:
+    #: ``count``, ``max`` [ms] and ``period_max_p50`` (median of each period's longest) [ms].
+    node_fws_in_loop: dict = field(default_factory=dict)
     driver: dict = field(default_factory=dict)
     timeline: list = field(default_factory=list)
     node_alive: bool = True
@@ -88,6 +91,11 @@ class SoakResult:
             f'{self.node_lost_total} lost (DDS events); its compute time p50 '
             f'{self.node_compute_p50_ms} ms',
         ]
+        fws = self.node_fws_in_loop
+        if fws.get('count'):
+            lines.append(f"the node's FWS in the loop (its /diagnostics): {fws['count']} computed, "
+                         f"longest {fws['max']:.1f} ms, each period's longest p50 "
+                         f"{fws['period_max_p50']:.1f} ms")
         if self.load_average:
             lines.append('machine load average (1, 5, 15 min): ' + '; '.join(
                 f'{when} {" ".join(f"{x:.2f}" for x in values)}'
@@ -160,10 +168,10 @@ def fill_timeline(result: SoakResult, s: np.ndarray, t_start: float, wall0_ns: i
 
 
 def fill_node_diagnostics(result: SoakResult, diag: list, lock: threading.Lock) -> None:
-    """Take the node's own 'lost' count and compute-time p50 from its last diagnostics."""
+    """Take the node's own 'lost' count, compute-time p50 and in-loop FWS from its diagnostics."""
     with lock:
         arrays = list(diag)
-    lost, gaps, p50 = None, None, []
+    lost, gaps, p50, fws_count, fws_max = None, None, [], 0, []
     for arr in arrays:
         for st in arr.status:
             values = {kv.key: kv.value for kv in st.values}
@@ -174,6 +182,13 @@ def fill_node_diagnostics(result: SoakResult, diag: list, lock: threading.Lock) 
                 x = float(values.get('compute time p50 [ms]', 'nan'))
                 if np.isfinite(x):
                     p50.append(x)
+                n = int(values.get('FWS in the loop (period)', 0))
+                if n:
+                    fws_count += n
+                    fws_max.append(float(values['FWS in the loop max [ms]']))
+    if fws_count:
+        result.node_fws_in_loop = {'count': fws_count, 'max': round(max(fws_max), 3),
+                                   'period_max_p50': round(float(np.median(fws_max)), 3)}
     result.node_lost_total = lost
     result.node_missing_from_sequence = gaps
     result.node_compute_p50_ms = round(float(np.median(p50)), 3) if p50 else None

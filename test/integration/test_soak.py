@@ -82,6 +82,10 @@ def test_short_soak_loses_nothing_and_rss_stays_flat(ros_env):
     assert r.reports == r.sent and r.missing == 0 and r.duplicates == 0 and r.unexpected == 0
     assert set(r.status_counts) <= {'ok', 'warning'}, r.status_counts
     assert r.node_missing_from_sequence == 0 and r.node_lost_total == 0
+    # 10 Hz FWS by stamps and one per stance change, over 5 s: all in the loop (fws_lag_s 0).
+    fws = r.node_fws_in_loop
+    assert fws['count'] >= 45 and 0.0 < fws['period_max_p50'] <= fws['max'], fws
+    assert "the node's FWS in the loop (its /diagnostics): " in r.table()
     assert r.rss_growth_percent < 5.0, r.rss_mb
     assert 0.0 < r.cpu_percent['mean'] < 250.0                  # sanity, not a rate
     assert any(name.startswith('awp_ros.node.marker_worker (pid ')
