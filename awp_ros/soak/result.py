@@ -93,8 +93,9 @@ class SoakResult:
         ]
         fws = self.node_fws_in_loop
         if fws.get('count'):
-            lines.append(f"the node's FWS in the loop (its /diagnostics): {fws['count']} computed, "
-                         f"longest {fws['max']:.1f} ms, each period's longest p50 "
+            lines.append("the node's FWS in the loop (its /diagnostics): "
+                         f"{fws['count']} computed, longest {fws['max']:.1f} ms, each period's "
+                         f"longest p50 "
                          f"{fws['period_max_p50']:.1f} ms")
         if self.load_average:
             lines.append('machine load average (1, 5, 15 min): ' + '; '.join(
