@@ -95,7 +95,7 @@ class SoakResult:
         if fws.get('count'):
             lines.append("the node's FWS in the loop (its /diagnostics): "
                          f"{fws['count']} computed, longest {fws['max']:.1f} ms, each period's "
-                         f"longest p50 "
+                         'longest p50 '
                          f"{fws['period_max_p50']:.1f} ms")
         if self.load_average:
             lines.append('machine load average (1, 5, 15 min): ' + '; '.join(
