@@ -22,10 +22,13 @@ units in the keys. Two statuses:
   the last warning (the reasons of the reports), the reports per number of stance legs in
   the period (e.g. ``2:480, 4:520``; fewer than 3 legs give flat wrench sets), compute time
   p50 / p99 [ms], latency from the joint-state stamp to the report's publication p50 / p99
-  [ms] over the period, and outputs that could not be built. ERROR when there is no robot
-  model (``model_error``), a report of the period has ``STATUS_ERROR`` or an output failed;
-  WARN when parameters were rejected at startup (``config_errors``, defaults used instead),
-  reports in the period were not evaluated (invalid, stale), carried a warning,
+  [ms] over the period, the FWS computed in the joint-state loop (``fws_lag_s`` = 0: how many
+  in the period and the longest [ms]; one longer than :data:`FWS_LOOP_PERIODS` joint-state
+  periods is named in the OK message, with ``fws_lag_s`` as the way to take it off the loop:
+  the reports after it wait for it), and outputs that could not be built. ERROR when there is
+  no robot model (``model_error``), a report of the period has ``STATUS_ERROR`` or an output
+  failed; WARN when parameters were rejected at startup (``config_errors``, defaults used
+  instead), reports in the period were not evaluated (invalid, stale), carried a warning,
   or when the p50 compute time exceeds the joint-state period of the period's receive rate
   (the node is falling behind; the queue of ``qos_depth`` absorbs bursts).
 
