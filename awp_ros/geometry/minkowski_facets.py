@@ -35,7 +35,7 @@ one class: one normal, the union of their cones. Rank-deficient choices (a vanis
 wedge) are dropped (``normal_tol``): by the exchange argument of (2) each facet also has an
 independent choice. For HyQ-like legs (11-13 vertices, about 14 edge classes, 7 facet
 classes) and 4 legs this is about 9e4 choices (three quarters in the pattern (2, 1, 1, 1)),
-5-6e3 survivors and about 4e3 rows once deduplicated, in about 3 ms on one core (with the
+4e3-1.2e4 survivors and 2-7e3 rows once deduplicated, in about 3 ms on one core (with the
 compiled kernels; the whole H-rep is ``awp_bench``'s ``fws_ms``). Run numpy's BLAS with
 one thread (e.g. ``OPENBLAS_NUM_THREADS=1``): with two threads on two shared cores it is 2x
 slower.
