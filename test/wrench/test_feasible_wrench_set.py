@@ -171,6 +171,45 @@ def test_two_boxes_hull_normal_is_the_moment_about_the_foot_line():
     check_hrep_vertices_are_sums(S, p, [V, V])
 
 
+@pytest.mark.parametrize('K,seed', [(3, 20), (4, 21), (4, 22)])
+def test_every_pair_of_feet_gives_two_facets_whose_faces_add_up_to_six(K, seed):
+    """
+    Along a = (p_i x d, d) / |.|, d = p_j - p_i, c_i = c_j = 0: legs i, j lie whole in the face.
+
+    For any feet (here random, not level, not aligned) the face of S with normal +-a is
+    ``L_i Q_i + L_j Q_j`` plus one vertex of each other leg: 5-dimensional (the two lifted
+    spaces share the direction ``(d, p_i x d)``), a facet whose legs' face dimensions add up to
+    6, not 5. Checked without the engine's algorithm: the vertex sums on the plane
+    ``a . x = max a . x`` span a 5-dimensional affine set, and the H-rep has the row.
+    """
+    rng = np.random.default_rng(seed)
+    vertex_sets = [rng.normal(size=(rng.integers(4, 7), 3)) * [300, 300, 900] + [0, 0, 800]
+                   for _ in range(K)]
+    p = hyq_feet(rng, K) + rng.uniform(-0.1, 0.1, size=(K, 3))
+    S = minkowski_sum_of_lifts(p, vertex_sets)
+    assert S.dimension == 6
+    pts = vertex_sums(p, vertex_sets)
+    scale = np.abs(pts).max()
+    found = 0
+    for i in range(K):
+        for j in range(i + 1, K):
+            d = p[j] - p[i]
+            for sign in (1.0, -1.0):
+                a = sign * np.concatenate([np.cross(p[i], d), d])
+                a /= np.linalg.norm(a)
+                L = lift_matrices(p)
+                assert np.abs(L[i].T @ a).max() < 1e-12 and np.abs(L[j].T @ a).max() < 1e-12
+                h = np.max(pts @ a)
+                face = pts[pts @ a >= h - 1e-9 * scale]
+                assert np.linalg.matrix_rank(face[1:] - face[0], tol=1e-6 * scale) == 5
+                # The H-rep holds that row, with the support as offset.
+                k = int(np.argmax(S.A @ a))
+                assert S.A[k] @ a == pytest.approx(1.0, abs=1e-9)
+                assert S.b[k] == pytest.approx(h, abs=1e-9 * scale)
+                found += 1
+    assert found == K * (K - 1)
+
+
 # -- brute force: qhull on all vertex sums (and on the H-rep's vertices) -----------------------
 
 @pytest.mark.parametrize('K,seed', [(1, 0), (1, 1), (2, 2), (2, 3), (3, 4), (3, 5)])
