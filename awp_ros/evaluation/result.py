@@ -225,9 +225,39 @@ class FeasibilityResult:
         return 'warning' if self.warnings else 'ok'
 
     @property
+    def fws_feasible_per_cycle(self) -> bool | None:
+        r"""
+        Return whether ``w`` is in the FWS, from this cycle's feasible region; None if unknown.
+
+        .. math:: R = \{\delta : [f;\ \dot L + \delta \times f] \in \mathrm{FWS}\},
+                  \qquad 0 \in R \iff w \in \mathrm{FWS}
+
+        The feasible region is the FWS's slice through ``w`` (``delta = 0`` gives ``w``
+        itself), so the current CoM lies in it exactly when the wrench is in the FWS: the
+        FWS's verdict every cycle, without its H-rep. Given with three or more stance legs
+        (a 6D FWS: the region is a polygon, or empty when no CoM position balances ``w``),
+        when the region was computed this cycle (``feasible_region_per_cycle``), with
+        :meth:`~awp_ros.wrench.com_region.ComRegion.contains`'s tolerance (1e-9 m); None
+        otherwise (two legs: a 5D FWS, whose verdict allows ``w`` off its hull by the hull
+        tolerance).
+        """
+        region = self.feasible_region_per_cycle
+        if region is None or len(self.stance) < 3:
+            return None
+        return region.contains(np.zeros(2))
+
+    @property
     def feasible(self) -> bool:
-        """Return whether ``w`` is in the FWS (when computed), else in the FWP."""
-        return (self.fws if self.fws is not None else self.fwp).feasible
+        """
+        Return whether ``w`` is in the FWS: the FWS's verdict when computed, else this cycle's.
+
+        Without the FWS: :attr:`fws_feasible_per_cycle` (with the FWP's verdict, its superset)
+        when known, else the FWP's verdict.
+        """
+        if self.fws is not None:
+            return self.fws.feasible
+        per_cycle = self.fws_feasible_per_cycle
+        return self.fwp.feasible if per_cycle is None else bool(per_cycle and self.fwp.feasible)
 
     def to_dict(self, *, halfspaces: bool = True) -> dict:
         """Return the result as the JSON document ``awp_eval`` prints."""

@@ -152,7 +152,8 @@ class PipelineParams:
         'the loop (the node: in a worker process) and enters the reports from the '
         'first joint state stamped >= t + fws_lag_s, the same in the node and the '
         'replay; after a stance change, until its FWS arrives, fws_* are NaN and '
-        'feasible is fwp_feasible; 0 = in the loop, in the cycle it is due')
+        'feasible (with two stance legs) is fwp_feasible; 0 = in the loop, in the cycle '
+        'it is due')
     marker_rate_hz: float = _param(
         30.0, 'marker publication rate by joint-state stamps [Hz]; 0 = no markers')
     marker_force_scale: float = _param(

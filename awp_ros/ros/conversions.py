@@ -233,9 +233,12 @@ def report_bytes(header: Header, result: FeasibilityResult | None, *, compute_ti
 
     The one place where a report's fields are set; :func:`report_msg` is its message and
     :func:`error_report` the report of a message that was not evaluated (``result`` None:
-    margins NaN, not feasible). ``feasible`` is ``fwp_feasible and fws_feasible``: equal to
-    ``fws_feasible`` when the FWS was computed for this message (FWS is a subset of FWP)
-    and never true when the current FWP excludes the wrench while an older FWS admitted it.
+    margins NaN, not feasible). ``feasible`` is ``fwp_feasible`` and the wrench in the FWS:
+    ``fws_feasible`` when the FWS was computed for this message (FWS is a subset of FWP),
+    else this cycle's verdict from the feasible region when there is one
+    (:attr:`~awp_ros.evaluation.result.FeasibilityResult.fws_feasible_per_cycle`: three or
+    more stance legs), else the latest FWS's; never true when the current FWP excludes the
+    wrench.
 
     :param header: stamp of the answered joint state; frame_id the wrench frame.
     :param result: the evaluation, or None (not evaluated).
@@ -276,9 +279,13 @@ def report_bytes(header: Header, result: FeasibilityResult | None, *, compute_ti
             plus, minus = _NAN6_LIST, _NAN6_LIST
         at = stamp if fws_stamp is None else fws_stamp
         directional = (plus, minus) + ((at.sec, at.nanosec) if fws is not None else (0, 0))
-        feasible = bool(sets[1][5] and (sets[2][5] or fws_pending and fws is None))
-        # The regions are this cycle's: an FWS of an earlier joint state does not give them.
+        # The FWS's verdict when it was computed for this joint state, else this cycle's
+        # feasible region's (three or more legs), else the latest FWS's.
         fresh = fws is not None and (fws_stamp is None or fws_stamp == stamp)
+        per_cycle = None if fresh else result.fws_feasible_per_cycle
+        in_fws = (sets[2][5] or fws_pending and fws is None) if per_cycle is None else per_cycle
+        feasible = bool(sets[1][5] and in_fws)
+        # The regions are this cycle's: an FWS of an earlier joint state does not give them.
         regions = _region_margins(result, fws if fresh else None)
         measured = result.measured
     if measured is None:

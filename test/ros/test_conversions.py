@@ -194,6 +194,11 @@ def test_every_report_field_is_the_results(evaluator, stance, efforts):
                 ref.feasible_region_margin = ref.capture_point_margin = math.nan
             if pending:
                 ref.feasible = ref.fwp_feasible
+            # Without an FWS of this joint state: this cycle's verdict, the CoM in the
+            # feasible region (three or more legs), else the latest FWS's as above.
+            region = r.feasible_region_per_cycle
+            if fws_stamp is not header.stamp and region is not None and len(r.stance) >= 3:
+                ref.feasible = ref.fwp_feasible and region.contains(np.zeros(2))
             assert _same(rep, ref)
 
 
