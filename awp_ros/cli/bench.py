@@ -92,7 +92,8 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
         baseline of the regions is timed.
     :return: stage name -> array (samples,) [ms] (:data:`~awp_ros.evaluation.evaluator.STAGES`,
         ``total`` and, with ``fws``, :data:`FWS_STAGES`), plus ``feasible`` (bool array:
-        ``w`` in the FWS when computed, else in the FWP).
+        ``result.feasible``, ``w`` in the FWS: the FWS's verdict when computed, else that of
+        the per-cycle feasible region with three or more legs, else the FWP's).
     """
     rng = np.random.default_rng(seed)
     base = evaluator.standing_state(stance=stance)
