@@ -29,7 +29,10 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
 * :func:`solid_faces`: the faces and normal cones of a solid leg polytope from its points and
   H-rep (facet rows, edges, their classes), for the FWS's Minkowski sum;
 * :func:`survivor_normals`: the unit normals of the FWS's face choices that passed the
-  normal-cone filter (a sparse wedge, the Hodge dual, the norm).
+  normal-cone filter (a sparse wedge, the Hodge dual, the norm);
+* :func:`slice_facet_normals`: the FWS's face choices of the patterns (2, 1, 1, 1), (2, 2, 1)
+  and (3, 1, 1) searched on the slices of one leg's facet (or of the whole leg), in R^4
+  (:mod:`awp_ros.geometry.minkowski_facets`, (5)).
 
 Each is measured beside its numpy code, interleaved in one process, by ``awp_bench
 --kernels`` (the README's speed section has the figures).
@@ -54,6 +57,7 @@ import os
 import numpy as np
 
 from awp_ros.geometry.exterior import wedge_table
+from awp_ros.geometry.linalg import workspace
 
 try:  # numba is a dependency; without it (or AWP_ROS_KERNELS=numpy) the numpy code runs
     import numba
@@ -65,7 +69,7 @@ __all__ = [
     'cross_products', 'flat_cone_facets',
     'feasible_region', 'flat_zonotope_facets', 'leg_vertices', 'lifted_rays', 'lifted_zonotope',
     'parallelepipeds', 'polar_hull', 'polygon_region', 'projected_polygon', 'solid_faces',
-    'sparse_wedge_table', 'survivor_normals', 'wedge_tables',
+    'slice_facet_normals', 'sparse_wedge_table', 'survivor_normals', 'wedge_tables',
     'wrench_slice', 'zonotope_facets']
 
 #: Whether the compiled kernels are used (numba importable and not disabled).
@@ -75,18 +79,25 @@ MAX_BITS = 63
 _COMPILED = False
 
 
-def _jit(function=None, *, inline: bool = False):
+def _jit(function=None, *, inline: bool = False, fastmath: bool = False):
     """
     Compile ``function`` with numba (no Python objects, cached on disk), if available.
 
     ``inline``: a helper inlined into its callers at numba's IR level (LLVM then sees the
-    whole loop: 2-3x faster here than a call per candidate).
+    whole loop: 2-3x faster here than a call per candidate). ``fastmath``: LLVM may
+    reassociate and contract sums (it then vectorises the loops of min / max over arrays);
+    infinities and NaN keep their meaning.
     """
     if function is None:
-        return lambda f: _jit(f, inline=inline)
+        return lambda f: _jit(f, inline=inline, fastmath=fastmath)
     if numba is None:
         return function
-    return numba.njit(cache=True, nogil=True, inline='always' if inline else 'never')(function)
+    return numba.njit(cache=True, nogil=True, inline='always' if inline else 'never',
+                      fastmath=_FASTMATH if fastmath else False)(function)
+
+
+# LLVM's fast-math flags without 'nnan' and 'ninf': the slot tests below rely on -inf.
+_FASTMATH = {'contract', 'reassoc', 'nsz', 'arcp'}
 
 
 @lru_cache(maxsize=16)
@@ -2088,6 +2099,331 @@ def survivor_normals(P: np.ndarray, X: np.ndarray, batch: np.ndarray, row: np.nd
                              float(min_norm))
 
 
+# -- The slice search of the FWS's facet normals (minkowski_facets, (5)) ----------------------
+#
+# On the slice of leg A's facet with unit normal n, c_A = lambda n, so a = (lambda n + p_A x t, t)
+# and c_k = lambda n + t x d_k with d_k = p_k - p_A, x = (lambda, t) in R^4 (world axes); on the
+# slice of all of Q_A (its face of dimension 3) c_A = 0, the same with lambda = 0 and n = 0.
+# An edge direction e of leg k is the wall r . x = 0, r = (n . e, d_k x e); a check vector m
+# the value s . x, s = (n . m, d_k x m). Three walls give x, their generalised cross product.
+
+
+@_jit(inline=True, fastmath=True)
+def _slice_lift(n, dk, v, out):
+    """Write ``(n . v, dk x v)``, ``c_k . v`` as a linear form of x = (lambda, t), to out."""
+    out[0] = n[0] * v[0] + n[1] * v[1] + n[2] * v[2]
+    out[1] = dk[1] * v[2] - dk[2] * v[1]
+    out[2] = dk[2] * v[0] - dk[0] * v[2]
+    out[3] = dk[0] * v[1] - dk[1] * v[0]
+
+
+@_jit(inline=True, fastmath=True)
+def _norm4(v):
+    return np.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3])
+
+
+@_jit(inline=True, fastmath=True)
+def _plucker4(r1, r2, out):
+    """Write r1 ^ r2 in R^4 (components 01, 02, 03, 12, 13, 23) to out; return its norm."""
+    out[0] = r1[0] * r2[1] - r1[1] * r2[0]
+    out[1] = r1[0] * r2[2] - r1[2] * r2[0]
+    out[2] = r1[0] * r2[3] - r1[3] * r2[0]
+    out[3] = r1[1] * r2[2] - r1[2] * r2[1]
+    out[4] = r1[1] * r2[3] - r1[3] * r2[1]
+    out[5] = r1[2] * r2[3] - r1[3] * r2[2]
+    acc = 0.0
+    for i in range(6):
+        acc += out[i] * out[i]
+    return np.sqrt(acc)
+
+
+@_jit(inline=True, fastmath=True)
+def _cross4(P, c, out):
+    """Write x with ``x . y = det[r1; r2; c; y]`` for ``P = r1 ^ r2`` to out (minors along c)."""
+    d123 = c[1] * P[5] - c[2] * P[4] + c[3] * P[3]
+    d023 = c[0] * P[5] - c[2] * P[2] + c[3] * P[1]
+    d013 = c[0] * P[4] - c[1] * P[2] + c[3] * P[0]
+    d012 = c[0] * P[3] - c[1] * P[1] + c[2] * P[0]
+    out[0] = -d123
+    out[1] = d023
+    out[2] = -d013
+    out[3] = d012
+
+
+@_jit(inline=True, fastmath=True)
+def _slot_signs(S, tol, k, c, x, nx):
+    """
+    Return (pos, neg) for one leg at x.
+
+    pos: some slot has every ``S . x >= -tol |x|``; neg: some slot has every
+    ``S . x <= tol |x|``. A missing slot has ``tol = -inf`` (fails both).
+    """
+    f = -np.inf
+    h = np.inf
+    for s in range(k):
+        mn = np.inf
+        mx = -np.inf
+        for j in range(c):
+            v = S[s, j, 0] * x[0] + S[s, j, 1] * x[1] + S[s, j, 2] * x[2] + S[s, j, 3] * x[3]
+            w = tol[s, j] * nx
+            mn = min(mn, v + w)
+            mx = max(mx, v - w)
+        f = max(f, mn)
+        h = min(h, mx)
+    return f >= 0.0, h <= 0.0
+
+
+@_jit(inline=True, fastmath=True)
+def _slot_bounds(G, g, k, c, R, Rn, nR, f, h, mn, mx):
+    """
+    Write one leg's slot bounds for every candidate wall ``R[:, d]`` to ``f`` and ``h``.
+
+    ``f[d] = max_slot min_check (G . R_d + g |R_d|)``,
+    ``h[d] = min_slot max_check (G . R_d - g |R_d|)`` (pos: ``f >= 0``, neg: ``h <= 0``), one
+    loop over the candidates per check (vectorised). A slot without checks passes both.
+    """
+    R0, R1, R2, R3 = R[0], R[1], R[2], R[3]
+    for s in range(k):
+        for j in range(c):
+            g0, g1, g2, g3 = G[s, j, 0], G[s, j, 1], G[s, j, 2], G[s, j, 3]
+            sl = g[s, j]
+            if j == 0:
+                for d in range(nR):
+                    v = g0 * R0[d] + g1 * R1[d] + g2 * R2[d] + g3 * R3[d]
+                    w = sl * Rn[d]
+                    mn[d] = v + w
+                    mx[d] = v - w
+            else:
+                for d in range(nR):
+                    v = g0 * R0[d] + g1 * R1[d] + g2 * R2[d] + g3 * R3[d]
+                    w = sl * Rn[d]
+                    lo = v + w
+                    hi = v - w
+                    mn[d] = lo if lo < mn[d] else mn[d]
+                    mx[d] = hi if hi > mx[d] else mx[d]
+        if c == 0:
+            for d in range(nR):
+                mn[d] = np.inf
+                mx[d] = -np.inf
+        if s == 0:
+            for d in range(nR):
+                f[d] = mn[d]
+                h[d] = mx[d]
+        else:
+            for d in range(nR):
+                f[d] = mn[d] if mn[d] > f[d] else f[d]
+                h[d] = mx[d] if mx[d] < h[d] else h[d]
+
+
+@_jit(inline=True, fastmath=True)
+def _slice_normal(x, n, pA, U, out, row, a):
+    """Write ``U^T a / |a|`` to out[row], ``a = (lambda n + p_A x t, t)``, x = (lambda, t)."""
+    a[0] = x[0] * n[0] + pA[1] * x[3] - pA[2] * x[2]
+    a[1] = x[0] * n[1] + pA[2] * x[1] - pA[0] * x[3]
+    a[2] = x[0] * n[2] + pA[0] * x[2] - pA[1] * x[1]
+    a[3] = x[1]
+    a[4] = x[2]
+    a[5] = x[3]
+    acc = 0.0
+    for i in range(6):
+        acc += a[i] * a[i]
+    scale = 1.0 / np.sqrt(acc)
+    for j in range(U.shape[1]):
+        acc = 0.0
+        for i in range(6):
+            acc += U[i, j] * a[i]
+        out[row, j] = acc * scale
+
+
+@_jit(inline=True, fastmath=True)
+def _slice_checks(n, dk, checks, mask, cone_tol, S, tol):
+    """Write the check forms ``S`` (k, c, 4) of a face class and their slack (-inf: no slot)."""
+    for s in range(S.shape[0]):
+        for j in range(S.shape[1]):
+            _slice_lift(n, dk, checks[s, j], S[s, j])
+            tol[s, j] = cone_tol * _norm4(S[s, j]) if mask[s] else -np.inf
+
+
+@_jit(fastmath=True)
+def _slice_search(positions, An, Ac, Am, nA, whole, Bd, Bc, Bm, nB, pair, Cd, Cc, Cm, nC,
+                  Dd, Dc, Dm, nD, legs, U, cone_tol, normal_tol, out_pos, out_neg):
+    """
+    Search the face choices of one pattern on slices (:func:`slice_facet_normals`).
+
+    Leg tuples ``legs`` (T, 3 or 4): A (its facet classes, or all of Q_A when ``whole``),
+    then the node legs and the candidate leg.
+
+    ``pair``: the node is one facet class of leg B (its two directions, pattern (2, 2, 1)),
+    or with ``whole`` one edge class of B with the wall lambda = 0 (3, 1, 1); else the node
+    is an edge class of B and one of C (2, 1, 1, 1). The candidates are the edge classes of
+    the last leg (D). Returns (pos rows, neg rows, choices), rows -1 when an output is full.
+    """
+    kA, cA = Ac.shape[2], Ac.shape[3]
+    kB, cB = Bc.shape[2], Bc.shape[3]
+    kC, cC = Cc.shape[2], Cc.shape[3]
+    kD, cD = Dc.shape[2], Dc.shape[3]
+    mD = Dd.shape[1]
+    npos = 0
+    nneg = 0
+    choices = 0
+    r1, r2, r3, x = np.empty(4), np.empty(4), np.empty(4), np.empty(4)
+    P, a = np.empty(6), np.empty(6)
+    dB, dC, dD = np.empty(3), np.empty(3), np.empty(3)
+    zero, n = np.zeros(3), np.zeros(3)
+    R, Rn = np.empty((4, mD)), np.empty(mD)
+    SA, tA = np.empty((kA, cA, 4)), np.empty((kA, cA))
+    SB, tB = np.empty((Bd.shape[1], kB, cB, 4)), np.empty((Bd.shape[1], kB, cB))
+    SC, tC = np.empty((Cd.shape[1], kC, cC, 4)), np.empty((Cd.shape[1], kC, cC))
+    SD, tD = np.empty((mD, kD, cD, 4)), np.empty((mD, kD, cD))
+    GB, gB = np.empty((kB, cB, 4)), np.empty((kB, cB))
+    GC, gC = np.empty((kC, cC, 4)), np.empty((kC, cC))
+    f1, h1, f2, h2 = np.empty(mD), np.empty(mD), np.empty(mD), np.empty(mD)
+    mn, mx = np.empty(mD), np.empty(mD)
+    for t in range(legs.shape[0]):
+        A, B, C, D = legs[t, 0], legs[t, 1], legs[t, 2], legs[t, -1]
+        pA = positions[A]
+        for i in range(3):
+            dB[i] = positions[B, i] - pA[i]
+            dC[i] = positions[C, i] - pA[i]
+            dD[i] = positions[D, i] - pA[i]
+        for fa in range(nA[A]):
+            if not whole:
+                for i in range(3):
+                    n[i] = An[A, fa, i]
+            _slice_checks(n, zero, Ac[A, fa], Am[A, fa], cone_tol, SA, tA)
+            for e in range(nD[D]):
+                _slice_lift(n, dD, Dd[D, e, 0], r3)
+                for i in range(4):
+                    R[i, e] = r3[i]
+                Rn[e] = _norm4(r3)
+                _slice_checks(n, dD, Dc[D, e], Dm[D, e], cone_tol, SD[e], tD[e])
+            for e in range(nB[B]):
+                _slice_checks(n, dB, Bc[B, e], Bm[B, e], cone_tol, SB[e], tB[e])
+            if not pair:
+                for e in range(nC[C]):
+                    _slice_checks(n, dC, Cc[C, e], Cm[C, e], cone_tol, SC[e], tC[e])
+            for b in range(nB[B]):
+                if pair and whole:
+                    r1[0], r1[1], r1[2], r1[3] = 1.0, 0.0, 0.0, 0.0
+                    _slice_lift(n, dB, Bd[B, b, 0], r2)
+                elif pair:
+                    _slice_lift(n, dB, Bd[B, b, 0], r1)
+                    _slice_lift(n, dB, Bd[B, b, 1], r2)
+                else:
+                    _slice_lift(n, dB, Bd[B, b, 0], r1)
+                for c in range(1 if pair else nC[C]):
+                    choices += nD[D]
+                    if not pair:
+                        _slice_lift(n, dC, Cd[C, c, 0], r2)
+                    nP = _plucker4(r1, r2, P)
+                    if not nP > normal_tol * _norm4(r1) * _norm4(r2):
+                        continue
+                    # A check S of a node leg at x(r3): S . x = det[r1; r2; r3; S]
+                    # = -cross4(P, S) . r3, a linear form G of the candidate wall r3.
+                    for s in range(kB):
+                        for j in range(cB):
+                            _cross4(P, SB[b, s, j], GB[s, j])
+                            for i in range(4):
+                                GB[s, j, i] = -GB[s, j, i]
+                            gB[s, j] = tB[b, s, j] * nP
+                    if not pair:
+                        for s in range(kC):
+                            for j in range(cC):
+                                _cross4(P, SC[c, s, j], GC[s, j])
+                                for i in range(4):
+                                    GC[s, j, i] = -GC[s, j, i]
+                                gC[s, j] = tC[c, s, j] * nP
+                    # The candidates: the node legs' checks first, as linear forms of the
+                    # candidate wall, then leg A's and the candidate leg's at x.
+                    _slot_bounds(GB, gB, kB, cB, R, Rn, nD[D], f1, h1, mn, mx)
+                    if not pair:
+                        _slot_bounds(GC, gC, kC, cC, R, Rn, nD[D], f2, h2, mn, mx)
+                    for d in range(nD[D]):
+                        pos = f1[d] >= 0.0
+                        neg = h1[d] <= 0.0
+                        if not pair:
+                            pos = pos and f2[d] >= 0.0
+                            neg = neg and h2[d] <= 0.0
+                        if not (pos or neg):
+                            continue
+                        for i in range(4):
+                            r3[i] = R[i, d]
+                        _cross4(P, r3, x)
+                        nx = _norm4(x)
+                        if not nx > normal_tol * nP * Rn[d]:       # rank-deficient choice
+                            continue
+                        pa, na = _slot_signs(SA, tA, kA, cA, x, nx)
+                        pos = pos and pa
+                        neg = neg and na
+                        if not (pos or neg):
+                            continue
+                        pd, nd = _slot_signs(SD[d], tD[d], kD, cD, x, nx)
+                        if pos and pd:
+                            if npos == out_pos.shape[0]:
+                                return -1, -1, choices
+                            _slice_normal(x, n, pA, U, out_pos, npos, a)
+                            npos += 1
+                        if neg and nd:
+                            if nneg == out_neg.shape[0]:
+                                return -1, -1, choices
+                            for i in range(4):
+                                x[i] = -x[i]
+                            _slice_normal(x, n, pA, U, out_neg, nneg, a)
+                            nneg += 1
+    return npos, nneg, choices
+
+
+#: The patterns :func:`slice_facet_normals` searches (r = 6).
+SLICE_PATTERNS = ((2, 1, 1, 1), (2, 2, 1), (3, 1, 1))
+
+
+def slice_facet_normals(positions: np.ndarray, U: np.ndarray, groups: dict, dims: tuple,
+                        legs: np.ndarray, cone_tol: float,
+                        normal_tol: float) -> tuple[np.ndarray, int]:
+    r"""
+    Return the unit normals (hull coordinates) of one pattern's face choices that pass (3).
+
+    :mod:`awp_ros.geometry.minkowski_facets`, (5): the choices of leg A's face (a facet
+    class, or all of Q_A) are searched on its slice, ``x = (lambda, t)`` in R^4; the node's
+    two walls give ``P = r1 ^ r2``, every candidate wall ``r3`` the normal
+    ``x = *(r1 ^ r2 ^ r3)``, and a check of a node leg is the linear form
+    ``-*(r1 ^ r2 ^ s)`` of ``r3`` (one pass over the candidates per check). Check values
+    pass within ``cone_tol`` times ``|s| |x|`` (the node legs': ``|s| |r1 ^ r2| |r3|``,
+    a bound of it), in float64; choices with ``|x| <= normal_tol |r1 ^ r2| |r3|`` (or a
+    node with ``|r1 ^ r2| <= normal_tol |r1| |r2|``) are rank-deficient and skipped.
+
+    :param positions: (K, 3) feet relative to the CoM [m].
+    :param U: (6, 6) orthonormal basis of the sum's hull (r = 6).
+    :param groups: ``d -> (dirs (K, m, d, 3), checks (K, m, k, c, 3), mask (K, m, k),
+        counts (K,))``, every leg's face classes of dimension ``d`` padded (counts 0: none).
+    :param dims: the pattern, one of :data:`SLICE_PATTERNS`.
+    :param legs: (T, len(dims)) leg tuples of the pattern.
+    :return: ``(normals (N, 6), choices examined)``, the rows passing with the + sign then
+        those passing with the - sign (negated), each in search order.
+    """
+    dims = tuple(dims)
+    positions = np.ascontiguousarray(positions, dtype=float)
+    U = np.ascontiguousarray(U, dtype=float)
+    legs = np.ascontiguousarray(legs, dtype=np.int64)
+    whole = dims[0] == 3
+    A = groups[dims[0]]
+    An = np.zeros(A[0].shape[:2] + (3,)) if whole else \
+        np.ascontiguousarray(np.cross(A[0][:, :, 0], A[0][:, :, 1]))
+    B, C, D = groups[dims[1]], groups[dims[2]], groups[dims[-1]]
+    pair = len(dims) == 3
+    cap = 4096
+    while True:
+        out_pos = workspace('fws_slice_pos', (cap, 6))
+        out_neg = workspace('fws_slice_neg', (cap, 6))
+        npos, nneg, choices = _slice_search(
+            positions, An, A[1], A[2], A[3], whole, B[0], B[1], B[2], B[3], pair,
+            C[0], C[1], C[2], C[3], D[0], D[1], D[2], D[3], legs, U, float(cone_tol),
+            float(normal_tol), out_pos, out_neg)
+        if npos >= 0:
+            return np.vstack([out_pos[:npos], out_neg[:nneg]]), int(choices)
+        cap *= 4
+
+
 def compile_all() -> None:
     """
     Compile (or load from the disk cache) every kernel on small inputs, once per process.
@@ -2135,6 +2471,11 @@ def compile_all() -> None:
                      0.0)
     survivor_normals(rng.normal(size=(1, 1, 20)), rng.normal(size=(1, 1, 15)), index, index,
                      index, 3, 2, 1, 0.0)                   # the general kernel
+    groups = {d: (rng.normal(size=(2, 2, d, 3)), rng.normal(size=(2, 2, 2, 2, 3)),
+                  np.ones((2, 2, 2), dtype=bool), np.full(2, 2)) for d in (1, 2, 3)}
+    for dims, legs in (((2, 1, 1, 1), [[0, 1, 1, 1]]), ((2, 2, 1), [[0, 1, 1]]),
+                       ((3, 1, 1), [[0, 1, 1]])):
+        slice_facet_normals(g[:2, :3], np.eye(6), groups, dims, np.array(legs), 1e-5, 1e-8)
 
 
 if __name__ == '__main__':

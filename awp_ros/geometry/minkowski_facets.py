@@ -19,6 +19,25 @@ in the coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``
     determinant too, the pairing of ``(M_k m) ^ X_k`` with the wedge of the other legs' faces, so
     one small matrix product per leg tests every combination at once (no loop over candidates).
 
+(5) With the compiled kernels and a full-dimensional sum (``r = 6``: three or more stance legs,
+    not all feet on a line), the patterns (2, 1, 1, 1), (2, 2, 1) and (3, 1, 1), 97 % of the
+    choices, are searched on *slices* instead
+    (:func:`awp_ros.geometry.kernels.slice_facet_normals`).
+    For world-aligned ``a = (a_f, a_t)`` the legs see ``c_k = a_f + a_t x p_k``. When leg A
+    gives a facet with unit normal ``n``, ``c_A = lambda n``, so
+    ``a = (lambda n + p_A x a_t, a_t)`` with ``x = (lambda, a_t)`` in R^4, and every other
+    leg sees ``c_k = lambda n + a_t x d_k``, ``d_k = p_k - p_A`` (when A gives all of
+    ``Q_A``, ``lambda = 0``). An edge ``e`` of leg k is then the wall ``r . x = 0`` with
+    ``r = (n . e, d_k x e)``, a check ``m`` the linear form ``(n . m, d_k x m) . x``, and a
+    choice's normal is the generalised cross product of its three walls,
+    ``x . y = det[r_1; r_2; r_3; y]``. For one node (the first two walls,
+    ``P = r_1 ^ r_2``) a check ``s`` of a node leg is ``s . x = -*(P ^ s) . r_3``, a linear
+    form of the candidate wall ``r_3``: one pass over the candidate leg's edges per check, in
+    float64, with the slack ``cone_tol |s| |x|`` (or its bound ``cone_tol |s| |P| |r_3|``).
+    It keeps the same facets as (3) with fewer redundant copies
+    (``test_fws_facets_equal_the_numpy_reference``), in about a third of its time; the
+    pattern (3, 2), two-leg and five-leg patterns stay with (2)-(3).
+
 The caller then sets each row's offset to the support function of ``S`` (an exact
 supporting halfspace whatever ``a`` is). Every tolerance in (3) only admits extra (redundant
 but valid) rows: a facet's check values are exactly >= 0, so it is kept as long as the slack
@@ -79,16 +98,29 @@ FLOAT32_SLACK = 2.5e-6
 
 
 def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
-                  normal_tol: float) -> tuple[np.ndarray, int]:
+                  normal_tol: float, *, feet: np.ndarray | None = None,
+                  basis: np.ndarray | None = None) -> tuple[np.ndarray, int]:
     """
     Return unit candidate normals (N, r) that pass the normal-cone tests, and the count.
 
     The face choices are grouped by *pattern*, the face dimensions sorted in decreasing order
     (reordering the legs only flips the sign of ``a``, and both signs are tested); all leg
-    assignments of one pattern run as one batch, padded to the largest class count.
+    assignments of one pattern run as one batch, padded to the largest class count. With the
+    compiled kernels, the feet ``feet`` (K, 3) [m] and the hull's basis ``basis`` (6, r) of
+    ``M_k = basis^T L_k``, and ``r = 6``, the patterns (2, 1, 1, 1), (2, 2, 1) and (3, 1, 1)
+    are searched on slices instead (5).
     """
     if r == 1:                                    # a segment: both directions of the line
         return np.array([[1.0], [-1.0]]), 2
+    offered = tuple(tuple(range(1, min(len(F.groups), r - 1) + 1)) for F in faces)
+    patterns = _patterns(offered, r - 1)
+    sliced = kernels.ENABLED and r == 6 and feet is not None and basis is not None
+    if sliced:
+        numpy_dims = {d for dims, _ in patterns if tuple(dims) not in kernels.SLICE_PATTERNS
+                      for d in dims}
+        padded = {d: _padded_groups(faces, d) for d in (1, 2, 3)}
+    else:
+        numpy_dims = {d for dims, _ in patterns for d in dims}
     # Per leg and face dimension d: X (m, C(r, d)) wedges, Y (m, k, c, C(r, d + 1)) checks.
     lifted = []
     for F, Mk in zip(faces, M):
@@ -96,6 +128,8 @@ def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
         for d, group in enumerate(F.groups, start=1):
             if d > r - 1:
                 break
+            if d not in numpy_dims:
+                continue
             dirs = group.dirs @ Mk.T               # (m, d, r)
             X = dirs[:, 0, :]
             for i in range(1, d):
@@ -112,14 +146,43 @@ def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
     stacked = {d: _stack([per_dim.get(d) for per_dim in lifted], r, d)
                for d in {d for per_dim in lifted for d in per_dim}}
     normals, count = [], 0
-    for dims, legs in _patterns(tuple(tuple(sorted(per_dim)) for per_dim in lifted), r - 1):
-        sets = [_select(stacked[d], column) for d, column in zip(dims, zip(*legs))]
-        a, n = _pattern_normals(sets, dims, r, scale, cone_tol, normal_tol)
+    for dims, legs in patterns:
+        if sliced and tuple(dims) in kernels.SLICE_PATTERNS:
+            a, n = kernels.slice_facet_normals(feet, basis, padded, dims, np.array(legs),
+                                               cone_tol, normal_tol)
+        else:
+            sets = [_select(stacked[d], column) for d, column in zip(dims, zip(*legs))]
+            a, n = _pattern_normals(sets, dims, r, scale, cone_tol, normal_tol)
         normals.append(a)
         count += n
     if not normals:
         return np.zeros((0, r)), 0
     return np.vstack(normals), count
+
+
+def _padded_groups(faces: list[Faces], d: int) -> tuple[np.ndarray, ...]:
+    """
+    Return every leg's face classes of dimension ``d``, padded.
+
+    ``(dirs (K, m, d, 3), checks (K, m, k, c, 3), mask (K, m, k), counts (K,))``, count 0
+    for a leg without them.
+    """
+    groups = [F.groups[d - 1] if len(F.groups) >= d else None for F in faces]
+    shapes = np.array([g.checks.shape[:3] if g is not None else (0, 1, 0) for g in groups])
+    m, k, c = np.maximum(shapes.max(axis=0), (1, 1, 0))
+    K = len(faces)
+    dirs = np.zeros((K, m, d, 3))
+    checks = np.zeros((K, m, k, c, 3))
+    mask = np.zeros((K, m, k), dtype=bool)
+    counts = np.zeros(K, dtype=np.int64)
+    for i, g in enumerate(groups):
+        if g is not None:
+            mi, ki, ci = g.checks.shape[:3]
+            dirs[i, :mi] = g.dirs
+            checks[i, :mi, :ki, :ci] = g.checks
+            mask[i, :mi, :ki] = g.mask
+            counts[i] = mi
+    return dirs, checks, mask, counts
 
 
 @lru_cache(maxsize=64)

@@ -142,7 +142,7 @@ def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
         return Polytope(0, origin[None, :], np.zeros((0, 6)), np.zeros(0), origin,
                         np.zeros((6, 0)), {'candidates': 0, 'kept': 0})
     M = np.einsum('nr,knd->krd', U, L)            # M_k = U^T L_k, (K, r, 3)
-    A_r, count = facet_normals(faces, M, r, cone_tol, normal_tol)
+    A_r, count = facet_normals(faces, M, r, cone_tol, normal_tol, feet=P, basis=U)
     # Support (4) over every input point, not only the extreme ones the face search kept;
     # a leg found flat within rank_tol is projected on its plane like its faces (consistent
     # flattening: mixing the two made an ill-conditioned H-rep overshoot S).

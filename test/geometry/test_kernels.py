@@ -4,7 +4,8 @@ from itertools import combinations
 
 import numpy as np
 import pytest
-from scipy.spatial import ConvexHull
+from scipy.optimize import linprog
+from scipy.spatial import cKDTree, ConvexHull
 
 from awp_ros.geometry import kernels
 from awp_ros.geometry.linalg import subset_cross_products, subset_tree
@@ -571,7 +572,12 @@ def test_solid_faces_leave_large_point_sets_to_numpy():
 
 @pytest.mark.parametrize('K', [3, 4])
 def test_fws_facets_equal_the_numpy_reference(K):
-    """The FWS with every kernel on (faces, survivors' normals) equals the numpy code's."""
+    """
+    The FWS with every kernel on (faces, slice search, survivors' normals) is numpy's polytope.
+
+    The rows of each are the other's to 1e-9, or implied by the other's rows (an LP: the
+    slice search keeps fewer redundant copies of degenerate facets).
+    """
     from cases import hyq_feet, hyq_like_leg
     from awp_ros.wrench.feasible_wrench_set import minkowski_sum_of_lifts
     rng = np.random.default_rng(20 + K)
@@ -579,11 +585,28 @@ def test_fws_facets_equal_the_numpy_reference(K):
         feet, legs = hyq_feet(rng, K), [hyq_like_leg(rng) for _ in range(K)]
         fast = minkowski_sum_of_lifts(feet, legs)
         ref = _numpy(minkowski_sum_of_lifts, feet, legs)
-        assert fast.meta == ref.meta and fast.A.shape == ref.A.shape
-        rows = np.column_stack([fast.A, fast.b / 1e3])
-        rows_ref = np.column_stack([ref.A, ref.b / 1e3])
-        gap = np.linalg.norm(rows[:, None] - rows_ref[None], axis=2)
-        assert gap.min(axis=1).max() < 1e-9 and gap.min(axis=0).max() < 1e-9
+        assert fast.dimension == ref.dimension == 6
+        for S, other in ((fast, ref), (ref, fast)):
+            rows = np.column_stack([S.A, S.b / 1e3])
+            gap, _ = cKDTree(np.column_stack([other.A, other.b / 1e3])).query(rows)
+            for i in np.flatnonzero(gap > 1e-9):
+                best = linprog(-S.A[i], A_ub=other.A, b_ub=other.b, bounds=(None, None),
+                               method='highs')
+                assert best.status == 0 and -best.fun <= S.b[i] + 1e-9 * (1 + abs(S.b[i]))
+            assert np.count_nonzero(gap > 1e-9) < 0.2 * gap.size
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_slice_search_generalised_cross_product(seed):
+    """``_cross4``: x . y = det[r1; r2; c; y] for P = r1 ^ r2 (the slice search's normal)."""
+    rng = np.random.default_rng(seed)
+    r1, r2, c, y = rng.normal(size=(4, 4))
+    P, x = np.empty(6), np.empty(4)
+    norm = kernels._plucker4(r1, r2, P)
+    kernels._cross4(P, c, x)
+    assert x @ y == pytest.approx(np.linalg.det(np.array([r1, r2, c, y])), rel=1e-12)
+    assert np.abs([x @ r1, x @ r2, x @ c]).max() < 1e-12 * np.abs(x).max()
+    assert norm == pytest.approx(np.sqrt(np.linalg.det(np.array([r1, r2]) @ np.array([r1, r2]).T)))
 
 
 def test_survivor_normals_are_unit_and_orthogonal_to_the_faces():

@@ -212,14 +212,15 @@ def test_every_pair_of_feet_gives_two_facets_whose_faces_add_up_to_six(K, seed):
 
 # -- brute force: qhull on all vertex sums (and on the H-rep's vertices) -----------------------
 
-@pytest.mark.parametrize('K,seed', [(1, 0), (1, 1), (2, 2), (2, 3), (3, 4), (3, 5)])
+@pytest.mark.parametrize('K,seed', [(1, 0), (1, 1), (2, 2), (2, 3), (3, 4), (3, 5), (4, 6),
+                                    (4, 7)])
 def test_random_small_sums_match_qhull(K, seed):
     rng = np.random.default_rng(seed)
     vertex_sets = [rng.normal(size=(rng.integers(4, 8), 3)) * [300, 300, 900] + [0, 0, 800]
                    for _ in range(K)]
     p = hyq_feet(rng, K)
     S = minkowski_sum_of_lifts(p, vertex_sets)
-    assert S.dimension == {1: 3, 2: 5, 3: 6}[K]
+    assert S.dimension == {1: 3, 2: 5, 3: 6, 4: 6}[K]
     check_rows_support(S, p, vertex_sets)
     pts = vertex_sums(p, vertex_sets)
     check_hrep_vertices_are_sums(S, p, vertex_sets)
