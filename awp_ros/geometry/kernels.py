@@ -30,8 +30,9 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
   H-rep (facet rows, edges, their classes), for the FWS's Minkowski sum;
 * :func:`survivor_normals`: the unit normals of the FWS's face choices that passed the
   normal-cone filter (a sparse wedge, the Hodge dual, the norm);
-* :func:`slice_facet_normals`: the FWS's face choices of the patterns (2, 1, 1, 1), (2, 2, 1)
-  and (3, 1, 1) searched on the slices of one leg's facet (or of the whole leg), in R^4
+* :func:`first_of_equal_rows`: the FWS's rows deduplicated (one hash-table pass);
+* :func:`slice_facet_normals`: the FWS's face choices of the patterns (2, 1, 1, 1), (2, 2, 1),
+  (3, 1, 1) and (3, 2) searched on the slices of one leg's facet (or of the whole leg), in R^4
   (:mod:`awp_ros.geometry.minkowski_facets`, (5)).
 
 Each is measured beside its numpy code, interleaved in one process, by ``awp_bench
@@ -66,7 +67,7 @@ except ImportError:  # pragma: no cover - exercised only on installs without num
 
 __all__ = [
     'ENABLED', 'MAX_BITS', 'cone_double_description', 'cone_facets', 'cone_recheck',
-    'cross_products', 'flat_cone_facets',
+    'cross_products', 'first_of_equal_rows', 'flat_cone_facets',
     'feasible_region', 'flat_zonotope_facets', 'leg_vertices', 'lifted_rays', 'lifted_zonotope',
     'parallelepipeds', 'polar_hull', 'polygon_region', 'projected_polygon', 'solid_faces',
     'slice_facet_normals', 'sparse_wedge_table', 'survivor_normals', 'wedge_tables',
@@ -2373,8 +2374,60 @@ def _slice_search(positions, An, Ac, Am, nA, whole, Bd, Bc, Bm, nB, pair, Cd, Cc
     return npos, nneg, choices
 
 
+@_jit(fastmath=True)
+def _slice_whole_facet(positions, Bd, Bc, Bm, nB, legs, U, cone_tol, normal_tol, out_pos,
+                       out_neg):
+    """
+    Search the pattern (3, 2) on its slice (:func:`slice_facet_normals`).
+
+    Leg A gives all of Q_A (the slice lambda = 0, no checks), leg B a facet class, whose two
+    directions are the walls beside lambda = 0. Returns (pos rows, neg rows, choices), rows
+    -1 when an output is full.
+    """
+    kB, cB = Bc.shape[2], Bc.shape[3]
+    npos = 0
+    nneg = 0
+    choices = 0
+    r1, r2, r3, x = np.empty(4), np.empty(4), np.empty(4), np.empty(4)
+    P, a = np.empty(6), np.empty(6)
+    dB, n = np.empty(3), np.zeros(3)
+    SB, tB = np.empty((kB, cB, 4)), np.empty((kB, cB))
+    r1[0], r1[1], r1[2], r1[3] = 1.0, 0.0, 0.0, 0.0
+    for t in range(legs.shape[0]):
+        A, B = legs[t, 0], legs[t, 1]
+        pA = positions[A]
+        for i in range(3):
+            dB[i] = positions[B, i] - pA[i]
+        for b in range(nB[B]):
+            choices += 1
+            _slice_lift(n, dB, Bd[B, b, 0], r2)
+            _slice_lift(n, dB, Bd[B, b, 1], r3)
+            nP = _plucker4(r1, r2, P)
+            if not nP > normal_tol * _norm4(r2):
+                continue
+            _cross4(P, r3, x)
+            nx = _norm4(x)
+            if not nx > normal_tol * nP * _norm4(r3):
+                continue
+            _slice_checks(n, dB, Bc[B, b], Bm[B, b], cone_tol, SB, tB)
+            pos, neg = _slot_signs(SB, tB, kB, cB, x, nx)
+            if pos:
+                if npos == out_pos.shape[0]:
+                    return -1, -1, choices
+                _slice_normal(x, n, pA, U, out_pos, npos, a)
+                npos += 1
+            if neg:
+                if nneg == out_neg.shape[0]:
+                    return -1, -1, choices
+                for i in range(4):
+                    x[i] = -x[i]
+                _slice_normal(x, n, pA, U, out_neg, nneg, a)
+                nneg += 1
+    return npos, nneg, choices
+
+
 #: The patterns :func:`slice_facet_normals` searches (r = 6).
-SLICE_PATTERNS = ((2, 1, 1, 1), (2, 2, 1), (3, 1, 1))
+SLICE_PATTERNS = ((2, 1, 1, 1), (2, 2, 1), (3, 1, 1), (3, 2))
 
 
 def slice_facet_normals(positions: np.ndarray, U: np.ndarray, groups: dict, dims: tuple,
@@ -2405,6 +2458,18 @@ def slice_facet_normals(positions: np.ndarray, U: np.ndarray, groups: dict, dims
     positions = np.ascontiguousarray(positions, dtype=float)
     U = np.ascontiguousarray(U, dtype=float)
     legs = np.ascontiguousarray(legs, dtype=np.int64)
+    if dims == (3, 2):
+        B = groups[2]
+        cap = 256
+        while True:
+            out_pos = workspace('fws_slice_pos', (cap, 6))
+            out_neg = workspace('fws_slice_neg', (cap, 6))
+            npos, nneg, choices = _slice_whole_facet(positions, B[0], B[1], B[2], B[3], legs,
+                                                     U, float(cone_tol), float(normal_tol),
+                                                     out_pos, out_neg)
+            if npos >= 0:
+                return np.vstack([out_pos[:npos], out_neg[:nneg]]), int(choices)
+            cap *= 4
     whole = dims[0] == 3
     A = groups[dims[0]]
     An = np.zeros(A[0].shape[:2] + (3,)) if whole else \
@@ -2422,6 +2487,57 @@ def slice_facet_normals(positions: np.ndarray, U: np.ndarray, groups: dict, dims
         if npos >= 0:
             return np.vstack([out_pos[:npos], out_neg[:nneg]]), int(choices)
         cap *= 4
+
+
+@_jit
+def _first_of_equal_rows(X, scale):
+    """Open addressing on the rows rounded to integers (:func:`first_of_equal_rows`)."""
+    n, m = X.shape
+    q = np.empty((n, m), dtype=np.int64)
+    for i in range(n):
+        for j in range(m):
+            q[i, j] = np.int64(np.rint(X[i, j] * scale))
+    size = 16
+    while size < 2 * n:
+        size *= 2
+    table = np.full(size, -1, dtype=np.int64)
+    first = np.empty(n, dtype=np.int64)
+    count = 0
+    for i in range(n):
+        h = np.uint64(1469598103934665603)
+        for j in range(m):
+            h = (h ^ np.uint64(q[i, j])) * np.uint64(1099511628211)
+        slot = np.int64(h & np.uint64(size - 1))
+        while True:
+            k = table[slot]
+            if k < 0:
+                table[slot] = i
+                first[count] = i
+                count += 1
+                break
+            same = True
+            for j in range(m):
+                if q[k, j] != q[i, j]:
+                    same = False
+                    break
+            if same:
+                break
+            slot = (slot + 1) & (size - 1)
+    return first[:count].copy()
+
+
+def first_of_equal_rows(X: np.ndarray, decimals: int) -> np.ndarray:
+    """
+    Return the indices (increasing) of the first of each group of rows equal after rounding.
+
+    Rows equal after ``np.rint(X * 10**decimals)`` form a group; one pass with a hash table
+    of the rounded rows (open addressing, whole rows compared on a hash match). The numpy
+    form: ``np.sort(np.unique(np.rint(X * 10**decimals), axis=0, return_index=True)[1])``.
+    """
+    X = np.ascontiguousarray(X, dtype=float)
+    if X.ndim != 2 or X.shape[0] == 0:
+        return np.zeros(0, dtype=np.int64)
+    return _first_of_equal_rows(X, float(10.0 ** decimals))
 
 
 def compile_all() -> None:
@@ -2471,10 +2587,11 @@ def compile_all() -> None:
                      0.0)
     survivor_normals(rng.normal(size=(1, 1, 20)), rng.normal(size=(1, 1, 15)), index, index,
                      index, 3, 2, 1, 0.0)                   # the general kernel
+    first_of_equal_rows(g, 10)
     groups = {d: (rng.normal(size=(2, 2, d, 3)), rng.normal(size=(2, 2, 2, 2, 3)),
                   np.ones((2, 2, 2), dtype=bool), np.full(2, 2)) for d in (1, 2, 3)}
     for dims, legs in (((2, 1, 1, 1), [[0, 1, 1, 1]]), ((2, 2, 1), [[0, 1, 1]]),
-                       ((3, 1, 1), [[0, 1, 1]])):
+                       ((3, 1, 1), [[0, 1, 1]]), ((3, 2), [[0, 1]])):
         slice_facet_normals(g[:2, :3], np.eye(6), groups, dims, np.array(legs), 1e-5, 1e-8)
 
 

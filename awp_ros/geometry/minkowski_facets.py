@@ -20,8 +20,8 @@ in the coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``
     one small matrix product per leg tests every combination at once (no loop over candidates).
 
 (5) With the compiled kernels and a full-dimensional sum (``r = 6``: three or more stance legs,
-    not all feet on a line), the patterns (2, 1, 1, 1), (2, 2, 1) and (3, 1, 1), 97 % of the
-    choices, are searched on *slices* instead
+    not all feet on a line), the patterns of three and four stance legs, (2, 1, 1, 1),
+    (2, 2, 1), (3, 1, 1) and (3, 2), are searched on *slices* instead
     (:func:`awp_ros.geometry.kernels.slice_facet_normals`).
     For world-aligned ``a = (a_f, a_t)`` the legs see ``c_k = a_f + a_t x p_k``. When leg A
     gives a facet with unit normal ``n``, ``c_A = lambda n``, so
@@ -29,14 +29,15 @@ in the coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``
     leg sees ``c_k = lambda n + a_t x d_k``, ``d_k = p_k - p_A`` (when A gives all of
     ``Q_A``, ``lambda = 0``). An edge ``e`` of leg k is then the wall ``r . x = 0`` with
     ``r = (n . e, d_k x e)``, a check ``m`` the linear form ``(n . m, d_k x m) . x``, and a
-    choice's normal is the generalised cross product of its three walls,
+    choice's normal is the generalised cross product of its three walls (with
+    ``lambda = 0`` the wall ``(1, 0, 0, 0)`` is one of them),
     ``x . y = det[r_1; r_2; r_3; y]``. For one node (the first two walls,
     ``P = r_1 ^ r_2``) a check ``s`` of a node leg is ``s . x = -*(P ^ s) . r_3``, a linear
     form of the candidate wall ``r_3``: one pass over the candidate leg's edges per check, in
     float64, with the slack ``cone_tol |s| |x|`` (or its bound ``cone_tol |s| |P| |r_3|``).
     It keeps the same facets as (3) with fewer redundant copies
-    (``test_fws_facets_equal_the_numpy_reference``), in about a third of its time; the
-    pattern (3, 2), two-leg and five-leg patterns stay with (2)-(3).
+    (``test_fws_facets_equal_the_numpy_reference``) in less time (README, "Speed"); flat
+    sums (two legs, feet on a line) and five or more legs stay with (2)-(3).
 
 The caller then sets each row's offset to the support function of ``S`` (an exact
 supporting halfspace whatever ``a`` is). Every tolerance in (3) only admits extra (redundant
@@ -107,8 +108,8 @@ def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
     (reordering the legs only flips the sign of ``a``, and both signs are tested); all leg
     assignments of one pattern run as one batch, padded to the largest class count. With the
     compiled kernels, the feet ``feet`` (K, 3) [m] and the hull's basis ``basis`` (6, r) of
-    ``M_k = basis^T L_k``, and ``r = 6``, the patterns (2, 1, 1, 1), (2, 2, 1) and (3, 1, 1)
-    are searched on slices instead (5).
+    ``M_k = basis^T L_k``, and ``r = 6``, the patterns (2, 1, 1, 1), (2, 2, 1), (3, 1, 1)
+    and (3, 2) are searched on slices instead (5).
     """
     if r == 1:                                    # a segment: both directions of the line
         return np.array([[1.0], [-1.0]]), 2

@@ -36,6 +36,7 @@ from typing import Sequence
 import numpy as np
 
 from awp_ros.errors import InputError
+from awp_ros.geometry import kernels
 from awp_ros.geometry.face_lattice import polytope_faces
 from awp_ros.geometry.linalg import orthonormal_span
 from awp_ros.geometry.minkowski_facets import facet_normals, FLOAT32_SLACK
@@ -184,6 +185,8 @@ def _unique_rows(X: np.ndarray, decimals: int) -> np.ndarray:
     """
     if X.shape[0] == 0:
         return np.zeros(0, dtype=int)
+    if kernels.ENABLED:        # one hash-table pass, compiled (the code below is its reference)
+        return kernels.first_of_equal_rows(X, decimals)
     q = np.rint(X * 10.0 ** decimals).astype(np.int64)
     weights = np.array([0x9E3779B97F4A7C15 >> (5 * i) for i in range(X.shape[1])],
                        dtype=np.uint64).astype(np.int64)

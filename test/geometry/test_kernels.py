@@ -596,6 +596,21 @@ def test_fws_facets_equal_the_numpy_reference(K):
             assert np.count_nonzero(gap > 1e-9) < 0.2 * gap.size
 
 
+@pytest.mark.parametrize('seed', range(4))
+def test_first_of_equal_rows_equals_numpy_unique(seed):
+    """The first index of each group of equal rounded rows, as numpy's unique finds it."""
+    from awp_ros.wrench.feasible_wrench_set import _unique_rows
+    rng = np.random.default_rng(seed)
+    X = rng.normal(size=(rng.integers(1, 400), 6))
+    X = X[rng.integers(0, X.shape[0], size=3 * X.shape[0])]            # repeats
+    X = X + rng.choice([0.0, 1e-13, -1e-13, 3e-6], size=X.shape)   # within and beyond 1e-10
+    first = kernels.first_of_equal_rows(X, 10)
+    _, ref = np.unique(np.rint(X * 1e10), axis=0, return_index=True)
+    np.testing.assert_array_equal(first, np.sort(ref))
+    np.testing.assert_array_equal(_numpy(_unique_rows, X, 10), np.sort(ref))
+    assert kernels.first_of_equal_rows(np.zeros((0, 6)), 10).size == 0
+
+
 @pytest.mark.parametrize('seed', range(3))
 def test_slice_search_generalised_cross_product(seed):
     """``_cross4``: x . y = det[r1; r2; c; y] for P = r1 ^ r2 (the slice search's normal)."""
