@@ -59,13 +59,17 @@ from scipy.spatial import ConvexHull, QhullError
 
 from awp_ros.errors import AwpError
 from awp_ros.estimation.motion import MotionEstimator
-from awp_ros.evaluation.evaluator import FeasibilityEvaluator, STAGES
+from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator, STAGES
+from awp_ros.geometry.face_lattice import polytope_faces
 from awp_ros.geometry.iterative_projection import iterative_projection, torque_halfspaces
+from awp_ros.geometry.linalg import orthonormal_span
+from awp_ros.geometry.minkowski_facets import facet_normals
 from awp_ros.robot.state import resolve_state
 from awp_ros.runtime import tune_process
 from awp_ros.wrench.com_region import com_region
 from awp_ros.wrench.friction_polytope import friction_rows
 from awp_ros.wrench.fws_queries import lp_directional_margins
+from awp_ros.wrench.wrench_polytope import lift_matrices
 
 __all__ = ['main', 'run_benchmark']
 
@@ -260,7 +264,10 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     per call: the last facets verified and reused), and the two CoM regions of the per-cycle
     stage (support region of the CWC, FWP region: the polygon step compiled); then the whole
     per-cycle evaluation (``evaluate(state, fws=False)``) of the same postures, and along a
-    stream of close postures (:func:`stream_times`' walk), every kernel off, then on.
+    stream of close postures (:func:`stream_times`' walk), every kernel off, then on; then
+    the FWS's facet search (the numpy reference's grid search against the compiled slice
+    search, :mod:`awp_ros.geometry.minkowski_facets`) and the whole FWS with its margins
+    (:func:`~awp_ros.evaluation.evaluator.compute_fws`) of the same postures.
     """
     from awp_ros.geometry import kernels
     from awp_ros.wrench import contact_wrench_cone as cwc
@@ -288,6 +295,8 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     walk = q0 + np.cumsum(rng.uniform(-0.002, 0.002, size=(samples, q0.size)), axis=0)
     states = [[replace(base, joint_positions=dict(zip(names, q.tolist()))) for q in qs]
               for qs in (postures, walk)]
+    jobs = [evaluator.fws_job(evaluator.evaluate(state, fws=False)) for state in states[0]]
+    searches = [_facet_search_case(job) for job in jobs]
     steps = {
         'force parallelepipeds': lambda c, i: parallelepipeds(c[1], c[2], lo, hi),
         'AWP zonotope': lambda c, i: actuation_wrench_polytope(c[0], c[3], c[4]),
@@ -299,6 +308,9 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
         'per-cycle evaluation': lambda c, i: evaluator.evaluate(states[0][i], fws=False),
         'per-cycle evaluation, stream': lambda c, i: evaluator.evaluate(states[1][i],
                                                                         fws=False),
+        'FWS facet search': lambda c, i: facet_normals(*searches[i][:5], feet=searches[i][5],
+                                                       basis=searches[i][6]),
+        'FWS with margins': lambda c, i: compute_fws(*jobs[i]),
     }
     times = {name: ([], []) for name in steps}
     enabled = kernels.ENABLED
@@ -315,6 +327,16 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     finally:
         kernels.ENABLED = enabled
     return {name: (float(np.median(a)), float(np.median(b))) for name, (a, b) in times.items()}
+
+
+def _facet_search_case(job: tuple) -> tuple:
+    """Return the arguments of the FWS's facet search (faces, lifts, tolerances, feet, U)."""
+    positions, frictions = np.asarray(job[0]), job[1]
+    faces = [polytope_faces(Q.vertices, (Q.A, Q.b)) for Q in frictions]
+    L = lift_matrices(positions)
+    U = orthonormal_span(np.hstack([Lk @ F.basis for Lk, F in zip(L, faces)]).T, rtol=1e-7)
+    M = np.einsum('nr,knd->krd', U, L)
+    return faces, M, U.shape[1], 1e-5, 1e-8, positions, U
 
 
 def batch_rates(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 0,
