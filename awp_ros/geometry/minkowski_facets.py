@@ -67,9 +67,10 @@ one class: one normal, the union of their cones. Rank-deficient choices (a vanis
 wedge) are dropped (``normal_tol``): by the exchange argument of (2) each facet also has an
 independent choice. For HyQ-like legs (11-13 vertices, about 14 edge classes, 7 facet
 classes) and 4 legs this is about 9e4 choices (three quarters in the pattern (2, 1, 1, 1)),
-4e3-1.2e4 survivors and 2-7e3 rows once deduplicated; the grid search takes 2.6-2.8 ms on
-one core, the slice search (5) 1.6-1.7 ms (``awp_bench --kernels``, line ``FWS facet search``;
-the whole H-rep is ``awp_bench``'s ``fws_ms``). Run numpy's BLAS with
+4e3-1.2e4 survivors and 2-7e3 rows once deduplicated; the grid search in numpy took 3.09 ms
+on one core, the slice search (5) 1.58 ms (``awp_bench -n 200 --kernels``, line ``FWS facet
+search``, 2026-12-06, load 0.00-0.22; the whole H-rep is ``awp_bench``'s ``fws_ms``). Run
+numpy's BLAS with
 one thread (e.g. ``OPENBLAS_NUM_THREADS=1``): with two threads on two shared cores it is 2x
 slower.
 Large temporaries live in per-thread buffers reused across calls
