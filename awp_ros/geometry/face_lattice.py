@@ -172,6 +172,13 @@ def polytope_faces(points: np.ndarray, halfspaces: tuple[np.ndarray, np.ndarray]
     if V.shape[0] == 0:
         empty = np.zeros((0, 3))
         return Faces(-1, empty, np.zeros(3), np.zeros((3, 0)), (), empty, np.zeros(0))
+    if halfspaces is not None and kernels.ENABLED:
+        found = kernels.certified_solid_faces(V, halfspaces[0], halfspaces[1], rank_tol,
+                                              plane_tol)
+        if found is not None:       # compiled, one call (the code below is its reference)
+            origin, (extreme, N, offsets, ed, ec, em, fd, fc, fm) = found
+            groups = (FaceGroup(ed, ec, em), FaceGroup(fd, fc, fm), _WHOLE)
+            return Faces(3, extreme, origin, np.eye(3), groups, N, offsets)
     origin = V.mean(axis=0)
     X = V - origin
     scale = float(np.max(np.linalg.norm(X, axis=1)))

@@ -26,11 +26,15 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
 * :func:`leg_vertices`, :func:`projected_polygon` and :func:`feasible_region`: the feasible
   region by exact iterative projection of the contact-force LP (a small dense simplex);
 * :func:`parallelepipeds`: the force parallelepipeds of 3-joint legs (inverse by cofactors);
+* :func:`batched_vertices`: the friction-bounded leg polytopes' vertices, every row triple of
+  every leg by Cramer's rule in one pass;
 * :func:`solid_faces`: the faces and normal cones of a solid leg polytope from its points and
   H-rep (facet rows, edges, their classes), for the FWS's Minkowski sum;
+  :func:`certified_solid_faces` with the centroid, scale and full-rank certificate;
 * :func:`survivor_normals`: the unit normals of the FWS's face choices that passed the
   normal-cone filter (a sparse wedge, the Hodge dual, the norm);
 * :func:`first_of_equal_rows`: the FWS's rows deduplicated (one hash-table pass);
+* :func:`ratio_test`: the directional margins' ratio test over every row in one pass;
 * :func:`slice_facet_normals`: the FWS's face choices of the patterns (2, 1, 1, 1), (2, 2, 1),
   (3, 1, 1) and (3, 2) searched on the slices of one leg's facet (or of the whole leg), in R^4
   (:mod:`awp_ros.geometry.minkowski_facets`, (5)).
@@ -58,7 +62,7 @@ import os
 import numpy as np
 
 from awp_ros.geometry.exterior import wedge_table
-from awp_ros.geometry.linalg import workspace
+from awp_ros.geometry.linalg import GRAM_CERTIFY, workspace
 
 try:  # numba is a dependency; without it (or AWP_ROS_KERNELS=numpy) the numpy code runs
     import numba
@@ -66,12 +70,13 @@ except ImportError:  # pragma: no cover - exercised only on installs without num
     numba = None
 
 __all__ = [
-    'ENABLED', 'MAX_BITS', 'cone_double_description', 'cone_facets', 'cone_recheck',
-    'cross_products', 'first_of_equal_rows', 'flat_cone_facets',
-    'feasible_region', 'flat_zonotope_facets', 'leg_vertices', 'lifted_rays', 'lifted_zonotope',
-    'parallelepipeds', 'polar_hull', 'polygon_region', 'projected_polygon', 'solid_faces',
-    'slice_facet_normals', 'sparse_wedge_table', 'survivor_normals', 'wedge_tables',
-    'wrench_slice', 'zonotope_facets']
+    'ENABLED', 'MAX_BITS', 'batched_vertices', 'certified_solid_faces',
+    'cone_double_description', 'cone_facets', 'cone_recheck', 'cross_products',
+    'first_of_equal_rows', 'flat_cone_facets', 'feasible_region', 'flat_zonotope_facets',
+    'leg_vertices', 'lifted_rays', 'lifted_zonotope', 'parallelepipeds', 'polar_hull',
+    'polygon_region', 'projected_polygon', 'ratio_test', 'solid_faces', 'slice_facet_normals',
+    'sparse_wedge_table', 'survivor_normals', 'wedge_tables', 'wrench_slice',
+    'zonotope_facets']
 
 #: Whether the compiled kernels are used (numba importable and not disabled).
 ENABLED = numba is not None and os.environ.get('AWP_ROS_KERNELS', '') != 'numpy'
@@ -2014,6 +2019,77 @@ def solid_faces(V: np.ndarray, A: np.ndarray, b: np.ndarray, origin: np.ndarray,
     return out[:-1] if out[-1] else None
 
 
+@_jit
+def _solid_faces_of(V, A, b, certify, plane_tol):
+    n = V.shape[0]
+    origin = np.zeros(3)
+    for i in range(n):
+        for t in range(3):
+            origin[t] += V[i, t]
+    for t in range(3):
+        origin[t] /= n
+    gram = np.zeros((3, 3))
+    scale2 = 0.0
+    for i in range(n):
+        x0, x1, x2 = V[i, 0] - origin[0], V[i, 1] - origin[1], V[i, 2] - origin[2]
+        scale2 = max(scale2, x0 * x0 + x1 * x1 + x2 * x2)
+        gram[0, 0] += x0 * x0
+        gram[0, 1] += x0 * x1
+        gram[0, 2] += x0 * x2
+        gram[1, 1] += x1 * x1
+        gram[1, 2] += x1 * x2
+        gram[2, 2] += x2 * x2
+    gram[1, 0], gram[2, 0], gram[2, 1] = gram[0, 1], gram[0, 2], gram[1, 2]
+    # det G / tr(G)^3 from the Cholesky factor, as orthonormal_span certifies full rank.
+    trace = gram[0, 0] + gram[1, 1] + gram[2, 2]
+    L = np.zeros((3, 3))
+    ratio = 1.0
+    for i in range(3):
+        for j in range(i + 1):
+            acc = gram[i, j]
+            for t in range(j):
+                acc -= L[i, t] * L[j, t]
+            if i == j:
+                if not acc > 0.0:
+                    ratio = 0.0
+                    break
+                L[i, i] = np.sqrt(acc)
+                ratio *= acc / trace
+            else:
+                L[i, j] = acc / L[j, j]
+        if ratio == 0.0:
+            break
+    scale = np.sqrt(scale2)
+    if not (trace > 0.0 and ratio > certify):
+        return (V[:0], np.zeros((0, 3)), np.zeros(0), np.zeros((0, 1, 3)),
+                np.zeros((0, 1, 1, 3)), np.zeros((0, 1), dtype=np.bool_),
+                np.zeros((0, 2, 3)), np.zeros((0, 1, 1, 3)), np.zeros((0, 1), dtype=np.bool_),
+                False, origin)
+    out = _solid_faces(V, A, b, origin, scale, plane_tol * scale)
+    return out + (origin,)
+
+
+def certified_solid_faces(V: np.ndarray, A: np.ndarray, b: np.ndarray, rank_tol: float,
+                          plane_tol: float) -> tuple | None:
+    """
+    Return ``(origin, solid_faces(...))`` of points certified full-dimensional, or None.
+
+    :func:`solid_faces` with its inputs computed in the same call: the centroid
+    ``origin``, ``scale`` (the largest distance from it), and the full rank of the centred
+    points certified as :func:`awp_ros.geometry.linalg.orthonormal_span` does
+    (``det G / tr(G)^3 > max(rank_tol^2, GRAM_CERTIFY)`` from the Cholesky factor of the
+    Gram matrix; a set it does not certify, or that :func:`solid_faces` declines, gives
+    None and the numpy code decides).
+    """
+    if V.shape[0] > MAX_BITS - 1 or V.shape[0] < 4:
+        return None
+    out = _solid_faces_of(np.ascontiguousarray(V, dtype=float),
+                          np.ascontiguousarray(A, dtype=float).reshape(-1, 3),
+                          np.ascontiguousarray(b, dtype=float).reshape(-1),
+                          max(float(rank_tol) ** 2, GRAM_CERTIFY), float(plane_tol))
+    return (out[-1], out[:-2]) if out[-2] else None
+
+
 # -- Facet normals of the FWS's face choices (awp_ros.geometry.minkowski_facets) -------------
 
 @lru_cache(maxsize=32)
@@ -2540,6 +2616,157 @@ def first_of_equal_rows(X: np.ndarray, decimals: int) -> np.ndarray:
     return _first_of_equal_rows(X, float(10.0 ** decimals))
 
 
+@_jit
+def _batched_vertices(A, b, tri, eps, det_tol, V, starts, facet, full):
+    """Cramer's rule on every row triple of every leg (:func:`batched_vertices`)."""
+    K, m = A.shape[0], A.shape[1]
+    T = tri.shape[0]
+    X = np.empty((T, 3))
+    keys = np.empty(T, dtype=np.int64)
+    x = np.empty(3)
+    n = 0
+    for k in range(K):
+        starts[k] = n
+        count = 0
+        for t in range(T):
+            i, j, q = tri[t, 0], tri[t, 1], tri[t, 2]
+            # a_j x a_q, a_q x a_i, a_i x a_j
+            c00 = A[k, j, 1] * A[k, q, 2] - A[k, j, 2] * A[k, q, 1]
+            c01 = A[k, j, 2] * A[k, q, 0] - A[k, j, 0] * A[k, q, 2]
+            c02 = A[k, j, 0] * A[k, q, 1] - A[k, j, 1] * A[k, q, 0]
+            det = A[k, i, 0] * c00 + A[k, i, 1] * c01 + A[k, i, 2] * c02
+            if not abs(det) > det_tol:
+                continue
+            c10 = A[k, q, 1] * A[k, i, 2] - A[k, q, 2] * A[k, i, 1]
+            c11 = A[k, q, 2] * A[k, i, 0] - A[k, q, 0] * A[k, i, 2]
+            c12 = A[k, q, 0] * A[k, i, 1] - A[k, q, 1] * A[k, i, 0]
+            c20 = A[k, i, 1] * A[k, j, 2] - A[k, i, 2] * A[k, j, 1]
+            c21 = A[k, i, 2] * A[k, j, 0] - A[k, i, 0] * A[k, j, 2]
+            c22 = A[k, i, 0] * A[k, j, 1] - A[k, i, 1] * A[k, j, 0]
+            bi, bj, bq = b[k, i], b[k, j], b[k, q]
+            x[0] = (bi * c00 + bj * c10 + bq * c20) / det
+            x[1] = (bi * c01 + bj * c11 + bq * c21) / det
+            x[2] = (bi * c02 + bj * c12 + bq * c22) / det
+            key = np.int64(0)
+            feasible = True
+            for r in range(m):
+                slack = b[k, r] - (A[k, r, 0] * x[0] + A[k, r, 1] * x[1] + A[k, r, 2] * x[2])
+                if slack < -eps[k]:
+                    feasible = False
+                    break
+                if slack <= eps[k]:
+                    key |= np.int64(1) << r
+            if not feasible:
+                continue
+            X[count] = x
+            keys[count] = key
+            count += 1
+        # One vertex per tight-row set, the first candidate of each, in increasing key order.
+        order = np.argsort(keys[:count], kind='mergesort')
+        for r in range(m):
+            facet[k, r] = False
+        rows = np.zeros(m, dtype=np.int64)
+        nv = 0
+        for u in range(count):
+            o = order[u]
+            if u > 0 and keys[o] == keys[order[u - 1]]:
+                continue
+            V[n + nv] = X[o]
+            for r in range(m):
+                if (keys[o] >> r) & 1:
+                    rows[r] += 1
+            nv += 1
+        most = 0
+        for r in range(m):
+            facet[k, r] = rows[r] >= 3
+            most = max(most, rows[r])
+        full[k] = nv >= 4 and most < nv
+        n += nv
+    starts[K] = n
+
+
+def batched_vertices(A: np.ndarray, b: np.ndarray, tri: np.ndarray, eps: np.ndarray,
+                     det_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Return the vertices of K polytopes ``{f : A_k f <= b_k}`` of R^3 by Cramer's rule.
+
+    The batched vertex enumeration of the friction-bounded polytopes
+    (:func:`awp_ros.wrench.friction_polytope.friction_polytopes`, whose numpy code is the
+    reference): for every row triple ``(i, j, q)`` of ``tri`` with ``|det| > det_tol``,
+    ``x = (b_i a_j x a_q + b_j a_q x a_i + b_q a_i x a_j) / (a_i . a_j x a_q)`` is a vertex
+    when no slack is below ``-eps_k``; the rows with ``|slack| <= eps_k`` are tight, and one
+    vertex is kept per set of tight rows (the first triple's, sets in increasing bit order).
+
+    :param A: (K, m, 3) unit rows, ``m <= 63``; :param b: (K, m); :param tri: (T, 3) row
+        triples; :param eps: (K,) feasibility tolerances.
+    :return: ``(V (n, 3), starts (K + 1,), facet (K, m), full (K,))``: leg k's vertices are
+        ``V[starts[k]:starts[k + 1]]``, ``facet`` its rows tight at 3 vertices or more,
+        ``full`` whether it has 4 vertices or more and no row tight at all of them.
+    """
+    A = np.ascontiguousarray(A, dtype=float)
+    K = A.shape[0]
+    V = np.empty((K * max(tri.shape[0], 1), 3))
+    starts = np.empty(K + 1, dtype=np.int64)
+    facet = np.empty((K, A.shape[1]), dtype=np.bool_)
+    full = np.empty(K, dtype=np.bool_)
+    _batched_vertices(A, np.ascontiguousarray(b, dtype=float),
+                      np.ascontiguousarray(tri, dtype=np.int64),
+                      np.ascontiguousarray(eps, dtype=float), float(det_tol), V, starts,
+                      facet, full)
+    return V[:starts[K]], starts, facet, full
+
+
+@_jit(fastmath=True)
+def _ratio_test(A, b, w, D, feasibility_tol, parallel_tol, t_hi, t_lo, empty):
+    """Run the ratio test, a branch-free pass over the rows per direction (:func:`ratio_test`)."""
+    m, n = A.shape
+    s = np.empty(m)
+    for i in range(m):
+        acc = b[i]
+        for c in range(n):
+            acc -= A[i, c] * w[c]
+        s[i] = acc
+    for j in range(D.shape[0]):
+        d = D[j]
+        hi = np.inf
+        lo = -np.inf
+        bad = 0.0
+        for i in range(m):
+            g = 0.0
+            for c in range(n):
+                g += d[c] * A[i, c]
+            r = s[i] / (g if g != 0.0 else 1.0)
+            hi = min(hi, r if g > parallel_tol else np.inf)
+            lo = max(lo, r if g < -parallel_tol else -np.inf)
+            flat = abs(g) <= parallel_tol and s[i] < -feasibility_tol
+            bad = max(bad, 1.0 if flat else 0.0)
+        t_hi[j] = hi
+        t_lo[j] = -lo
+        empty[j] = bad > 0.0 or lo > hi + feasibility_tol
+
+
+def ratio_test(A: np.ndarray, b: np.ndarray, w: np.ndarray, D: np.ndarray,
+               feasibility_tol: float, parallel_tol: float
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Return ``(t_plus, t_minus, empty)`` of the lines ``w + t D_j`` in ``{x : A x <= b}``.
+
+    The ratio test of :func:`~awp_ros.geometry.margin.directional_margins` in one pass over
+    the rows: with ``s = b - A w`` and ``g = A_i . D_j``, ``t_plus_j = min s_i / g`` over the
+    rows with ``g > parallel_tol``, ``-t_minus_j = max s_i / g`` over those with
+    ``g < -parallel_tol``; ``empty_j`` when ``-t_minus_j > t_plus_j + feasibility_tol`` or
+    a row parallel to ``D_j`` has ``s_i < -feasibility_tol``. The numpy form is
+    :func:`awp_ros.geometry.margin._ratio_test` on ``s`` and ``D A^T``.
+    """
+    A = np.ascontiguousarray(A, dtype=float)
+    D = np.ascontiguousarray(D, dtype=float)
+    k = D.shape[0]
+    t_hi, t_lo, empty = np.empty(k), np.empty(k), np.empty(k, dtype=np.bool_)
+    _ratio_test(A, np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(w, dtype=float),
+                D, float(feasibility_tol), float(parallel_tol), t_hi, t_lo, empty)
+    return t_hi, t_lo, empty
+
+
 def compile_all() -> None:
     """
     Compile (or load from the disk cache) every kernel on small inputs, once per process.
@@ -2582,12 +2809,15 @@ def compile_all() -> None:
     J = rng.normal(size=(2, 3, 3))
     parallelepipeds(J, g[:2, :3], -np.ones((2, 3)), np.ones((2, 3)), 1e-9)
     solid_faces(cube, box, np.ones(6), np.zeros(3), float(np.sqrt(3.0)), 1e-9)
+    certified_solid_faces(cube, box, np.ones(6), 1e-9, 1e-9)
     index = np.zeros(1, dtype=np.int64)
     survivor_normals(rng.normal(size=(1, 1, 15)), g.T[None, :1], index, index, index, 4, 1, 1,
                      0.0)
     survivor_normals(rng.normal(size=(1, 1, 20)), rng.normal(size=(1, 1, 15)), index, index,
                      index, 3, 2, 1, 0.0)                   # the general kernel
     first_of_equal_rows(g, 10)
+    ratio_test(g.T, np.ones(8), np.zeros(6), np.eye(6), 1e-6, 1e-9)
+    batched_vertices(box[None], np.ones((1, 6)), np.array([[0, 1, 2]]), np.ones(1), 1e-12)
     groups = {d: (rng.normal(size=(2, 2, d, 3)), rng.normal(size=(2, 2, 2, 2, 3)),
                   np.ones((2, 2, 2), dtype=bool), np.full(2, 2)) for d in (1, 2, 3)}
     for dims, legs in (((2, 1, 1, 1), [[0, 1, 1, 1]]), ((2, 2, 1), [[0, 1, 1]]),

@@ -43,6 +43,7 @@ import numpy as np
 from scipy.optimize import nnls
 
 from awp_ros.errors import GeometryError, InputError
+from awp_ros.geometry import kernels
 from awp_ros.geometry.polytope import Polytope
 
 __all__ = ['SetMargin', 'directional_margins', 'polytope_margin']
@@ -206,6 +207,12 @@ def directional_margins(P: Polytope, w: np.ndarray, directions: np.ndarray | Non
     if P.is_empty:
         return nan, nan.copy()
     U, o = P.hull_basis, P.hull_origin
+    if U.shape[1] == n and kernels.ENABLED:     # full-dimensional: the ratio test alone
+        t_plus, t_minus, empty = kernels.ratio_test(P.A, P.b, w, D, feasibility_tol,
+                                                    parallel_tol)
+        t_plus[empty] = np.nan
+        t_minus[empty] = np.nan
+        return t_plus, t_minus
     s = P.b - P.A @ w
     Gt = D @ P.A.T  # (k, m): one row per direction, reductions along the long axis
     t_plus, t_minus, empty = _ratio_test(s, Gt, feasibility_tol, parallel_tol)

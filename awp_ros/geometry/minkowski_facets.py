@@ -144,8 +144,10 @@ def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
             Y = Y @ wedge_table(r, r - 1 - d, d + 1)[:, :, 0].T
             per_dim[d] = (X, Y.reshape(m, k, c, Y.shape[-1]), group.mask)
         lifted.append(per_dim)
-    # The largest singular value of any M_k (one batched 3x3 eigenproblem, not K SVDs).
-    scale = float(np.sqrt(np.linalg.eigvalsh(np.einsum('krd,kre->kde', M, M))[:, -1].max()))
+    # The largest singular value of any M_k (one batched 3x3 eigenproblem, not K SVDs),
+    # for the patterns the numpy grid searches.
+    scale = float(np.sqrt(np.linalg.eigvalsh(np.einsum('krd,kre->kde', M, M))[:, -1].max())) \
+        if numpy_dims else 0.0
     stacked = {d: _stack([per_dim.get(d) for per_dim in lifted], r, d)
                for d in {d for per_dim in lifted for d in per_dim}}
     normals, count = [], 0
@@ -171,8 +173,10 @@ def _padded_groups(faces: list[Faces], d: int) -> tuple[np.ndarray, ...]:
     for a leg without them.
     """
     groups = [F.groups[d - 1] if len(F.groups) >= d else None for F in faces]
-    shapes = np.array([g.checks.shape[:3] if g is not None else (0, 1, 0) for g in groups])
-    m, k, c = np.maximum(shapes.max(axis=0), (1, 1, 0))
+    shapes = [g.checks.shape[:3] for g in groups if g is not None]
+    m = max([1] + [sh[0] for sh in shapes])
+    k = max([1] + [sh[1] for sh in shapes])
+    c = max([0] + [sh[2] for sh in shapes])
     K = len(faces)
     dirs = np.zeros((K, m, d, 3))
     checks = np.zeros((K, m, k, c, 3))

@@ -29,6 +29,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from awp_ros.geometry import kernels
 from awp_ros.geometry.linalg import cross3
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.wrench.contact_wrench_cone import friction_pyramid, friction_pyramids
@@ -243,6 +244,9 @@ def _batched(forces: list[Polytope], rows: np.ndarray, tol: float,
     # triples holding both are singular and are left out.
     half = m0 // 2 if m0 % 2 == 0 and (AF[:, m0 // 2:] == -AF[:, :m0 // 2]).all() else 0
     tri, pairs, powers = _triple_tables(m, half)
+    if kernels.ENABLED and m <= kernels.MAX_BITS:     # the loops below, fused (reference)
+        V, starts, facet, full = kernels.batched_vertices(A, b, tri.T, eps, det_tol)
+        return _legs(V, starts, A, b, facet, full)
     C = cross3(A[:, :, None, :], A[:, None, :, :]).reshape(K, m * m, 3)       # a_p x a_q
     C = C[:, pairs]                             # (K, 3, T, 3): a_j x a_l, a_l x a_i, a_i x a_j
     det = (A[:, tri[0]] * C[:, 0]) @ np.ones(3)
@@ -265,15 +269,21 @@ def _batched(forces: list[Polytope], rows: np.ndarray, tol: float,
     # Full-dimensional: 4 vertices or more and no row holding them all (a flat set lies on
     # its plane's rows); such a leg goes through the general path.
     nv = np.diff(starts)
-    full = ((nv >= 4) & (count.max(axis=1) < nv)).tolist()
+    full = (nv >= 4) & (count.max(axis=1) < nv)
+    return _legs(V, starts, A, b, facet, full)
+
+
+def _legs(V: np.ndarray, starts: np.ndarray, A: np.ndarray, b: np.ndarray,
+          facet: np.ndarray, full: np.ndarray) -> list[Polytope | None]:
+    """Return the full-dimensional legs' polytopes (vertices ``V[starts[k]:starts[k+1]]``)."""
     # Facet rows of every leg at once, then sliced (views) per leg.
     Af, bf = A[facet], b[facet]
-    ends = np.cumsum(facet @ np.ones(m)).tolist()
+    ends = np.cumsum(facet @ np.ones(A.shape[1])).tolist()
     bounds = starts.tolist()
-    out: list[Polytope | None] = [None] * K
+    out: list[Polytope | None] = [None] * A.shape[0]
     eye, zero = np.eye(3), np.zeros(3)
-    for k in range(K):
-        if full[k]:
+    for k, solid in enumerate(full.tolist()):
+        if solid:
             r0, r1 = int(ends[k - 1]) if k else 0, int(ends[k])
             out[k] = Polytope(3, V[bounds[k]:bounds[k + 1]], Af[r0:r1], bf[r0:r1], zero, eye)
     return out

@@ -538,6 +538,7 @@ def test_solid_faces_equal_the_numpy_reference():
         fast = polytope_faces(V, (A, b))
         ref = _numpy(polytope_faces, V, (A, b))
         assert fast.dimension == ref.dimension == 3
+        np.testing.assert_allclose(fast.origin, ref.origin, atol=1e-12)
         np.testing.assert_allclose(fast.vertices, ref.vertices, atol=1e-12)
         np.testing.assert_allclose(fast.facet_normals, ref.facet_normals, atol=1e-12)
         np.testing.assert_allclose(fast.facet_offsets, ref.facet_offsets, atol=1e-12)
@@ -563,6 +564,24 @@ def test_solid_faces_are_the_hull_facets_and_edges():
         # Euler: V - E + F = 2 (edges counted over their classes' slots)
         assert extreme.shape[0] - edge_mask.sum() + N.shape[0] == 2
         assert np.allclose(np.linalg.norm(edge_dirs[:, 0], axis=1), 1.0)
+
+
+def test_certified_solid_faces_leave_thin_sets_to_the_svd():
+    """A box 1e-7 thick is not certified (det G / tr^3 tiny) but the SVD finds it solid."""
+    from awp_ros.geometry.face_lattice import polytope_faces
+    box = np.vstack([np.eye(3), -np.eye(3)])
+    b = np.array([1.0, 1.0, 1e-7, 1.0, 1.0, 0.0])
+    V = kernels.leg_vertices(box, b)
+    assert kernels.certified_solid_faces(V, box, b, 1e-9, 1e-9) is None
+    assert kernels.certified_solid_faces(V[:3], box, b, 1e-9, 1e-9) is None     # 3 points
+    fast, ref = polytope_faces(V, (box, b)), _numpy(polytope_faces, V, (box, b))
+    assert fast.dimension == ref.dimension == 3
+    np.testing.assert_allclose(fast.facet_normals, ref.facet_normals, atol=1e-12)
+    cube = kernels.leg_vertices(box, np.ones(6)) + 0.5
+    origin, faces = kernels.certified_solid_faces(cube, box, np.repeat([1.5, 0.5], 3), 1e-9,
+                                                  1e-9)
+    np.testing.assert_allclose(origin, cube.mean(axis=0), atol=1e-15)
+    assert faces[1].shape == (6, 3)                 # the six facet normals
 
 
 def test_solid_faces_leave_large_point_sets_to_numpy():
@@ -594,6 +613,33 @@ def test_fws_facets_equal_the_numpy_reference(K):
                                method='highs')
                 assert best.status == 0 and -best.fun <= S.b[i] + 1e-9 * (1 + abs(S.b[i]))
             assert np.count_nonzero(gap > 1e-9) < 0.2 * gap.size
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_ratio_test_equals_numpy_and_the_lp(seed):
+    """Directional margins: the kernel, the numpy ratio test and an LP on each line agree."""
+    from awp_ros.geometry.margin import directional_margins
+    from awp_ros.geometry.polytope import Polytope
+    rng = np.random.default_rng(seed)
+    A = rng.normal(size=(rng.integers(8, 300), 6))
+    A[:3] = np.eye(6)[rng.integers(0, 6, size=3)]            # rows parallel to most axes
+    A /= np.linalg.norm(A, axis=1)[:, None]
+    b = rng.uniform(0.5, 2.0, size=A.shape[0])
+    P = Polytope(6, np.zeros((0, 6)), A, b, np.zeros(6), np.eye(6))
+    D = None if seed % 2 else rng.normal(size=(5, 6))
+    for w in (rng.normal(scale=0.2, size=6), rng.normal(scale=3.0, size=6)):   # in, out
+        got = directional_margins(P, w, D)
+        ref = _numpy(directional_margins, P, w, D)
+        for g, r in zip(got, ref):
+            np.testing.assert_allclose(g, r, rtol=1e-12, atol=1e-12)
+        for j, d in enumerate(np.eye(6) if D is None else D):
+            for sign, t in ((1.0, got[0][j]), (-1.0, got[1][j])):
+                lp = linprog(-1.0, A_ub=(sign * A @ d)[:, None], b_ub=b - A @ w,
+                             bounds=[(None, None)], method='highs')
+                if lp.status == 2:                  # the line misses P
+                    assert np.isnan(t)
+                else:
+                    assert lp.status == 0 and abs(t - lp.x[0]) <= 1e-9 * max(1.0, abs(t))
 
 
 @pytest.mark.parametrize('seed', range(4))

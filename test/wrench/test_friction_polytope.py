@@ -171,6 +171,29 @@ def test_batched_legs_equal_the_one_leg_path_including_degenerate_legs():
     assert [Q.dimension for Q in batch[4:]] == [-1, 0, 2]
 
 
+@pytest.mark.parametrize('seed', range(4))
+def test_batched_kernel_equals_the_numpy_batch(seed):
+    """The compiled vertex enumeration gives the numpy batch's vertices, in its order."""
+    from awp_ros.geometry import kernels
+    rng = np.random.default_rng(seed)
+    K = 6
+    forces = [force_polytope(*random_leg(rng)) for _ in range(K)]
+    normals = np.array([0.0, 0.0, 1.0]) + 0.3 * rng.normal(size=(K, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    rows = friction_rows(normals, rng.uniform(0.3, 1.2, K), 4 + seed % 3)
+    got = friction_polytopes(forces, rows)
+    kernels.ENABLED = False
+    try:
+        ref = friction_polytopes(forces, rows)
+    finally:
+        kernels.ENABLED = True
+    assert [Q.dimension for Q in got] == [Q.dimension for Q in ref]
+    for Q, R in zip(got, ref):
+        np.testing.assert_allclose(Q.vertices, R.vertices, rtol=1e-12, atol=1e-9)
+        np.testing.assert_array_equal(Q.A, R.A)
+        np.testing.assert_array_equal(Q.b, R.b)
+
+
 def test_frictionless_contact_keeps_the_unilateral_row_in_the_batch():
     # mu = 0: the pyramid facets leave the normal line; n . f >= 0 must cut it in half.
     J = np.diag([0.5, 0.4, 0.3])
