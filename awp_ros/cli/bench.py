@@ -63,11 +63,12 @@ from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator, STAG
 from awp_ros.geometry.face_lattice import polytope_faces
 from awp_ros.geometry.iterative_projection import iterative_projection, torque_halfspaces
 from awp_ros.geometry.linalg import orthonormal_span
+from awp_ros.geometry.margin import directional_margins
 from awp_ros.geometry.minkowski_facets import facet_normals
 from awp_ros.robot.state import resolve_state
 from awp_ros.runtime import tune_process
 from awp_ros.wrench.com_region import com_region
-from awp_ros.wrench.friction_polytope import friction_rows
+from awp_ros.wrench.friction_polytope import friction_polytopes, friction_rows
 from awp_ros.wrench.fws_queries import lp_directional_margins
 from awp_ros.wrench.wrench_polytope import lift_matrices
 
@@ -265,8 +266,10 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     stage (support region of the CWC, FWP region: the polygon step compiled); then the whole
     per-cycle evaluation (``evaluate(state, fws=False)``) of the same postures, and along a
     stream of close postures (:func:`stream_times`' walk), every kernel off, then on; then
-    the FWS's facet search (the numpy reference's grid search against the compiled slice
-    search, :mod:`awp_ros.geometry.minkowski_facets`) and the whole FWS with its margins
+    the FWS's steps: the friction-bounded leg polytopes (their vertex enumeration), the leg
+    polytopes' faces, the facet search (the numpy reference's grid search against the
+    compiled slice search, :mod:`awp_ros.geometry.minkowski_facets`), the 12 directional
+    margins on the FWS (the ratio test), and the whole FWS with its margins
     (:func:`~awp_ros.evaluation.evaluator.compute_fws`) of the same postures.
     """
     from awp_ros.geometry import kernels
@@ -295,8 +298,12 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     walk = q0 + np.cumsum(rng.uniform(-0.002, 0.002, size=(samples, q0.size)), axis=0)
     states = [[replace(base, joint_positions=dict(zip(names, q.tolist()))) for q in qs]
               for qs in (postures, walk)]
-    jobs = [evaluator.fws_job(evaluator.evaluate(state, fws=False)) for state in states[0]]
+    results = [evaluator.evaluate(state, fws=False) for state in states[0]]
+    jobs = [evaluator.fws_job(result) for result in results]
     searches = [_facet_search_case(job) for job in jobs]
+    forces = [[leg.force_polytope for leg in result.legs.values()] for result in results]
+    rows = evaluator._friction_rows(normals, mus)
+    fws_sets = [compute_fws(*job)[0] for job in jobs]
     steps = {
         'force parallelepipeds': lambda c, i: parallelepipeds(c[1], c[2], lo, hi),
         'AWP zonotope': lambda c, i: actuation_wrench_polytope(c[0], c[3], c[4]),
@@ -308,8 +315,12 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
         'per-cycle evaluation': lambda c, i: evaluator.evaluate(states[0][i], fws=False),
         'per-cycle evaluation, stream': lambda c, i: evaluator.evaluate(states[1][i],
                                                                         fws=False),
+        'friction-bounded polytopes': lambda c, i: friction_polytopes(forces[i], rows),
+        'FWS leg faces': lambda c, i: [polytope_faces(Q.vertices, (Q.A, Q.b))
+                                       for Q in jobs[i][1]],
         'FWS facet search': lambda c, i: facet_normals(*searches[i][:5], feet=searches[i][5],
                                                        basis=searches[i][6]),
+        'FWS directional margins': lambda c, i: directional_margins(fws_sets[i], jobs[i][2]),
         'FWS with margins': lambda c, i: compute_fws(*jobs[i]),
     }
     times = {name: ([], []) for name in steps}
