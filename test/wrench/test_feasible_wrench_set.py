@@ -486,3 +486,62 @@ def test_bad_input_raises():
     no_vertices = Polytope(3, np.zeros((0, 3)), np.eye(3), np.ones(3), np.zeros(3), np.eye(3))
     with pytest.raises(InputError, match='no vertices'):
         feasible_wrench_set(np.zeros((1, 3)), [no_vertices])
+
+
+def test_fws_with_kernels_on_the_default_bag_equals_numpy_and_the_lp(repo, tmp_path):
+    """
+    Every FWS the node computes over the default bag, and every 25th joint state's.
+
+    With the compiled kernels (faces, slice search, ratio test, ...) the signed margin and the
+    directional margins equal those of the numpy reference, recomputed from scratch, and the
+    directional margins and membership those of exact LPs on the legs' vertices (no H-rep;
+    three and four legs, where the FWS is solid).
+    """
+    from awp_ros.bags.replay import replay_bag
+    from awp_ros.evaluation.evaluator import compute_fws
+    from awp_ros.geometry import kernels
+    from awp_ros.robot.config import load_parameters
+    from awp_ros.ros.pipeline import Pipeline
+    from awp_ros.wrench.fws_queries import lp_directional_margins
+    values, base_dir = load_parameters('hyq')
+    pipe = Pipeline.from_parameters(values, base_dir=base_dir)
+    jobs = []
+    evaluate = pipe.on_joint_state
+
+    def keep(msg, **kw):
+        cycle = evaluate(msg, **kw)
+        r = cycle.result
+        if r is not None and r.legs and (r.fws is not None or len(jobs) % 25 == 0):
+            jobs.append(pipe.evaluator.fws_job(r))
+        elif r is not None and r.legs:
+            jobs.append(None)
+        return cycle
+    pipe.on_joint_state = keep
+    replay_bag(repo / 'config' / 'hyq_gait.mcap', tmp_path / 'out.mcap', pipeline=pipe,
+               outputs=['report'], progress=False, copy_inputs=False)
+    jobs = [job for job in jobs if job is not None]
+    legs = {len(job[1]) for job in jobs}
+    assert len(jobs) > 250 and legs == {2, 3, 4}
+    solid = 0
+    for positions, frictions, w, ftol, htol in jobs:
+        S, margin, plus, minus, _ = compute_fws(positions, frictions, w, ftol, htol)
+        kernels.ENABLED = False
+        try:
+            S0, margin0, plus0, minus0, _ = compute_fws(positions, frictions, w, ftol, htol)
+        finally:
+            kernels.ENABLED = True
+        scale = 1.0 + np.abs(w).max()
+        assert S.dimension == S0.dimension
+        assert margin.feasible == margin0.feasible
+        assert margin.margin == pytest.approx(margin0.margin, abs=1e-6 * scale)
+        np.testing.assert_allclose(plus, plus0, atol=1e-6 * scale, rtol=1e-9)
+        np.testing.assert_allclose(minus, minus0, atol=1e-6 * scale, rtol=1e-9)
+        if S.dimension < 6:     # flat (two legs): feasible within hull_tol of the hull
+            continue
+        solid += 1
+        member, lp_plus, lp_minus = lp_directional_margins(
+            positions, [Q.vertices for Q in frictions], w, feasibility_tol=ftol)
+        assert member == margin.feasible
+        np.testing.assert_allclose(plus, lp_plus, atol=1e-5 * scale, rtol=1e-7)
+        np.testing.assert_allclose(minus, lp_minus, atol=1e-5 * scale, rtol=1e-7)
+    assert solid > 150
