@@ -287,19 +287,20 @@ def _zonotope_facets(g, norms, subsets, rank_tol, incidence_tol):
 @_jit(inline=True)
 def _full_rank(gram, certify):
     """
-    Return whether a Gram matrix (6, 6) certifies full rank as ``orthonormal_span`` does.
+    Return whether a Gram matrix (n, n) certifies full rank as ``orthonormal_span`` does.
 
-    ``det(gram) / tr(gram)^6 > certify``, the determinant from the Cholesky factor's
+    ``det(gram) / tr(gram)^n > certify``, the determinant from the Cholesky factor's
     diagonal (False when the factorisation breaks down).
     """
+    n = gram.shape[0]
     trace = 0.0
-    for i in range(6):
+    for i in range(n):
         trace += gram[i, i]
     if not trace > 0.0:
         return False
-    L = np.zeros((6, 6))
+    L = np.zeros((n, n))
     ratio = 1.0
-    for i in range(6):
+    for i in range(n):
         for j in range(i + 1):
             acc = gram[i, j]
             for t in range(j):
@@ -2040,27 +2041,8 @@ def _solid_faces_of(V, A, b, certify, plane_tol):
         gram[1, 2] += x1 * x2
         gram[2, 2] += x2 * x2
     gram[1, 0], gram[2, 0], gram[2, 1] = gram[0, 1], gram[0, 2], gram[1, 2]
-    # det G / tr(G)^3 from the Cholesky factor, as orthonormal_span certifies full rank.
-    trace = gram[0, 0] + gram[1, 1] + gram[2, 2]
-    L = np.zeros((3, 3))
-    ratio = 1.0
-    for i in range(3):
-        for j in range(i + 1):
-            acc = gram[i, j]
-            for t in range(j):
-                acc -= L[i, t] * L[j, t]
-            if i == j:
-                if not acc > 0.0:
-                    ratio = 0.0
-                    break
-                L[i, i] = np.sqrt(acc)
-                ratio *= acc / trace
-            else:
-                L[i, j] = acc / L[j, j]
-        if ratio == 0.0:
-            break
     scale = np.sqrt(scale2)
-    if not (trace > 0.0 and ratio > certify):
+    if not _full_rank(gram, certify):
         return (V[:0], np.zeros((0, 3)), np.zeros(0), np.zeros((0, 1, 3)),
                 np.zeros((0, 1, 1, 3)), np.zeros((0, 1), dtype=np.bool_),
                 np.zeros((0, 2, 3)), np.zeros((0, 1, 1, 3)), np.zeros((0, 1), dtype=np.bool_),
