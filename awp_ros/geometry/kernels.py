@@ -2329,15 +2329,18 @@ def _slice_search(positions, An, Ac, Am, nA, whole, Bd, Bc, Bm, nB, pair, Cd, Cc
     P, a = np.empty(6), np.empty(6)
     dB, dC, dD = np.empty(3), np.empty(3), np.empty(3)
     zero, n = np.zeros(3), np.zeros(3)
-    R, Rn = np.empty((4, mD)), np.empty(mD)
+    # Candidate columns padded to a multiple of 4 (zeros: whole vector iterations in
+    # _slot_bounds; the padding is computed and never read).
+    mP = (mD + 3) // 4 * 4
+    R, Rn = np.zeros((4, mP)), np.zeros(mP)
     SA, tA = np.empty((kA, cA, 4)), np.empty((kA, cA))
     SB, tB = np.empty((Bd.shape[1], kB, cB, 4)), np.empty((Bd.shape[1], kB, cB))
     SC, tC = np.empty((Cd.shape[1], kC, cC, 4)), np.empty((Cd.shape[1], kC, cC))
     SD, tD = np.empty((mD, kD, cD, 4)), np.empty((mD, kD, cD))
     GB, gB = np.empty((kB, cB, 4)), np.empty((kB, cB))
     GC, gC = np.empty((kC, cC, 4)), np.empty((kC, cC))
-    f1, h1, f2, h2 = np.empty(mD), np.empty(mD), np.empty(mD), np.empty(mD)
-    mn, mx = np.empty(mD), np.empty(mD)
+    f1, h1, f2, h2 = np.empty(mP), np.empty(mP), np.empty(mP), np.empty(mP)
+    mn, mx = np.empty(mP), np.empty(mP)
     for t in range(legs.shape[0]):
         A, B, C, D = legs[t, 0], legs[t, 1], legs[t, 2], legs[t, -1]
         pA = positions[A]
@@ -2394,9 +2397,10 @@ def _slice_search(positions, An, Ac, Am, nA, whole, Bd, Bc, Bm, nB, pair, Cd, Cc
                                 gC[s, j] = tC[c, s, j] * nP
                     # The candidates: the node legs' checks first, as linear forms of the
                     # candidate wall, then leg A's and the candidate leg's at x.
-                    _slot_bounds(GB, gB, kB, cB, R, Rn, nD[D], f1, h1, mn, mx)
+                    nR = (nD[D] + 3) // 4 * 4
+                    _slot_bounds(GB, gB, kB, cB, R, Rn, nR, f1, h1, mn, mx)
                     if not pair:
-                        _slot_bounds(GC, gC, kC, cC, R, Rn, nD[D], f2, h2, mn, mx)
+                        _slot_bounds(GC, gC, kC, cC, R, Rn, nR, f2, h2, mn, mx)
                     for d in range(nD[D]):
                         pos = f1[d] >= 0.0
                         neg = h1[d] <= 0.0
