@@ -62,15 +62,14 @@ from awp_ros.estimation.motion import MotionEstimator
 from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator, STAGES
 from awp_ros.geometry.face_lattice import polytope_faces
 from awp_ros.geometry.iterative_projection import iterative_projection, torque_halfspaces
-from awp_ros.geometry.linalg import orthonormal_span
 from awp_ros.geometry.margin import directional_margins
 from awp_ros.geometry.minkowski_facets import facet_normals
 from awp_ros.robot.state import resolve_state
 from awp_ros.runtime import tune_process
 from awp_ros.wrench.com_region import com_region
+from awp_ros.wrench.feasible_wrench_set import lifted_hull, minkowski_sum_of_lifts
 from awp_ros.wrench.friction_polytope import friction_polytopes, friction_rows
 from awp_ros.wrench.fws_queries import lp_directional_margins
-from awp_ros.wrench.wrench_polytope import lift_matrices
 
 __all__ = ['main', 'run_benchmark']
 
@@ -343,11 +342,11 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
 def _facet_search_case(job: tuple) -> tuple:
     """Return the arguments of the FWS's facet search (faces, lifts, tolerances, feet, U)."""
     positions, frictions = np.asarray(job[0]), job[1]
-    faces = [polytope_faces(Q.vertices, (Q.A, Q.b)) for Q in frictions]
-    L = lift_matrices(positions)
-    U = orthonormal_span(np.hstack([Lk @ F.basis for Lk, F in zip(L, faces)]).T, rtol=1e-7)
-    M = np.einsum('nr,knd->krd', U, L)
-    return faces, M, U.shape[1], 1e-5, 1e-8, positions, U
+    tol = minkowski_sum_of_lifts.__kwdefaults__          # the FWS's own tolerances
+    faces = [polytope_faces(Q.vertices, (Q.A, Q.b), rank_tol=tol['rank_tol'],
+                            plane_tol=tol['plane_tol']) for Q in frictions]
+    _, _, U, M = lifted_hull(positions, faces, rank_tol=tol['rank_tol'])
+    return faces, M, U.shape[1], tol['cone_tol'], tol['normal_tol'], positions, U
 
 
 def batch_rates(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 0,

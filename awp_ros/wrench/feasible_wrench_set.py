@@ -37,14 +37,14 @@ import numpy as np
 
 from awp_ros.errors import InputError
 from awp_ros.geometry import kernels
-from awp_ros.geometry.face_lattice import polytope_faces
+from awp_ros.geometry.face_lattice import Faces, polytope_faces
 from awp_ros.geometry.linalg import orthonormal_span
 from awp_ros.geometry.minkowski_facets import facet_normals, FLOAT32_SLACK
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.wrench.wrench_polytope import lift_matrices
 
 # lift_matrices and lp_directional_margins are re-exported from their modules.
-__all__ = ['feasible_wrench_set', 'minkowski_sum_of_lifts']
+__all__ = ['feasible_wrench_set', 'lifted_hull', 'minkowski_sum_of_lifts']
 
 
 def feasible_wrench_set(positions: np.ndarray, friction_polytopes: Sequence[Polytope],
@@ -132,17 +132,11 @@ def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
              for V, H in zip(vertex_sets, halfspaces)]
     if any(F.dimension < 0 for F in faces):
         return Polytope.empty(6)
-    L = lift_matrices(P)
-    origin = np.zeros(6)
-    for Lk, F in zip(L, faces):
-        origin += Lk @ F.origin
-    spans = [Lk @ F.basis for Lk, F in zip(L, faces)]
-    U = orthonormal_span(np.hstack(spans + [np.zeros((6, 0))]).T, rtol=rank_tol)
+    L, origin, U, M = lifted_hull(P, faces, rank_tol=rank_tol)
     r = U.shape[1]
     if r == 0:
         return Polytope(0, origin[None, :], np.zeros((0, 6)), np.zeros(0), origin,
                         np.zeros((6, 0)), {'candidates': 0, 'kept': 0})
-    M = np.einsum('nr,knd->krd', U, L)            # M_k = U^T L_k, (K, r, 3)
     A_r, count = facet_normals(faces, M, r, cone_tol, normal_tol, feet=P, basis=U)
     # Support (4) over every input point, not only the extreme ones the face search kept;
     # a leg found flat within rank_tol is projected on its plane like its faces (consistent
@@ -160,6 +154,25 @@ def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
         vertices = np.zeros((0, 6))
     meta = {'candidates': count, 'kept': kept}
     return Polytope(r, vertices, A, b, origin, U, meta)
+
+
+def lifted_hull(positions: np.ndarray, faces: Sequence[Faces], *, rank_tol: float = 1e-7
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Return ``(L, o, U, M)``: the lifts, the sum's affine hull and each leg's map into it.
+
+    ``L`` (K, 6, 3) the lift matrices of the feet ``positions`` [m], ``o = sum_k L_k o_k``
+    (the legs' face origins), ``U`` (6, r) an orthonormal basis of the span of the lifted
+    legs' directions (``rank_tol`` as :func:`minkowski_sum_of_lifts`), ``M_k = U^T L_k``
+    (K, r, 3).
+    """
+    L = lift_matrices(positions)
+    origin = np.zeros(6)
+    for Lk, F in zip(L, faces):
+        origin += Lk @ F.origin
+    spans = [Lk @ F.basis for Lk, F in zip(L, faces)]
+    U = orthonormal_span(np.hstack(spans + [np.zeros((6, 0))]).T, rtol=rank_tol)
+    return L, origin, U, np.einsum('nr,knd->krd', U, L)
 
 
 def _support(A_r: np.ndarray, Z: list[np.ndarray]) -> np.ndarray:
