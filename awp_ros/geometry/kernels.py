@@ -315,8 +315,9 @@ def _full_rank(gram, certify):
     return ratio > certify
 
 
-@_jit
-def _lifted_zonotope(P, C, H, subsets, zero_tol, certify, rank_tol, incidence_tol):
+@_jit(inline=True)
+def _lifted_generators(P, C, H):
+    """Return ``G`` (6, 3K), ``c`` (6,) and the columns' norms: ``L_k H_k``, ``sum_k L_k c_k``."""
     K = P.shape[0]
     m = 3 * K
     G = np.empty((6, m))
@@ -338,31 +339,120 @@ def _lifted_zonotope(P, C, H, subsets, zero_tol, certify, rank_tol, incidence_to
             G[4, col] = pz * gx - px * gz
             G[5, col] = px * gy - py * gx
     norms = np.empty(m)
-    top = 0.0
     for j in range(m):
         acc = 0.0
         for i in range(6):
             acc += G[i, j] * G[i, j]
         norms[j] = np.sqrt(acc)
+    return G, c, norms
+
+
+@_jit(inline=True)
+def _short_generator(norms, zero_tol):
+    """Return whether a generator is at most ``zero_tol`` times the longest (the general code)."""
+    top = 0.0
+    for j in range(norms.shape[0]):
         top = max(top, norms[j])
-    for j in range(m):
+    for j in range(norms.shape[0]):
         if not norms[j] > zero_tol * top:
-            return np.empty((0, 6)), np.empty(0), c, False
-    if not _full_rank(G @ G.T, certify):
-        return np.empty((0, 6)), np.empty(0), c, False
-    a, h = _zonotope_facets(G, norms, subsets, rank_tol, incidence_tol)
-    k = a.shape[0]
+            return True
+    return False
+
+
+@_jit(inline=True)
+def _zonotope_rows(A1, h, c):
+    """Return the rows ``[A1; -A1]`` and ``b = [A1 c + h; h - A1 c]`` (the reference's order)."""
+    k = A1.shape[0]
     A = np.empty((2 * k, 6))
     b = np.empty(2 * k)
     for s in range(k):
         ac = 0.0
         for i in range(6):
-            A[s, i] = a[s, i]
-            A[k + s, i] = -a[s, i]
-            ac += a[s, i] * c[i]
+            A[s, i] = A1[s, i]
+            A[k + s, i] = -A1[s, i]
+            ac += A1[s, i] * c[i]
         b[s] = ac + h[s]
         b[k + s] = h[s] - ac
+    return A, b
+
+
+@_jit
+def _lifted_zonotope(P, C, H, subsets, zero_tol, certify, rank_tol, incidence_tol):
+    G, c, norms = _lifted_generators(P, C, H)
+    if _short_generator(norms, zero_tol) or not _full_rank(G @ G.T, certify):
+        return np.empty((0, 6)), np.empty(0), c, False
+    a, h = _zonotope_facets(G, norms, subsets, rank_tol, incidence_tol)
+    A, b = _zonotope_rows(a, h, c)
     return A, b, c, True
+
+
+@_jit(inline=True)
+def _pair_hyperplane(P):
+    r"""
+    Return the unit normal ``n`` of the hyperplane of two feet's wrenches and a basis of it.
+
+    ``L_1 f_1 + L_2 f_2`` spans ``n^\perp``, ``n = (p_1 x p_2, p_2 - p_1) / |.|`` (a force
+    along the line through both feet is the same wrench from either); the basis ``U`` (6, 5)
+    is the Householder reflection of ``n`` onto a coordinate axis without that axis's column.
+    ``n = 0`` (coincident feet) gives ``U`` of zeros, which the caller's certificate refuses.
+    """
+    x1, y1, z1, x2, y2, z2 = P[0, 0], P[0, 1], P[0, 2], P[1, 0], P[1, 1], P[1, 2]
+    n = np.array((y1 * z2 - z1 * y2, z1 * x2 - x1 * z2, x1 * y2 - y1 * x2,
+                  x2 - x1, y2 - y1, z2 - z1))
+    U = np.zeros((6, 5))
+    norm = np.sqrt(_norm2(n))
+    if not norm > 0.0:
+        return n, U
+    n /= norm
+    j = 0
+    for i in range(6):
+        if abs(n[i]) > abs(n[j]):
+            j = i
+    v = n.copy()
+    v[j] += 1.0 if n[j] >= 0.0 else -1.0
+    scale = 2.0 / _norm2(v)
+    col = 0
+    for t in range(6):                       # columns e_t - scale v v_t of the reflection
+        if t == j:
+            continue
+        for i in range(6):
+            U[i, col] = (1.0 if i == t else 0.0) - scale * v[i] * v[t]
+        col += 1
+    return n, U
+
+
+@_jit
+def _pair_hyperplane_of(P):
+    return _pair_hyperplane(P)
+
+
+def pair_hyperplane(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``(n, U)`` of two feet ``positions`` (2, 3) [m] (see :func:`_pair_hyperplane`)."""
+    return _pair_hyperplane_of(np.ascontiguousarray(positions, dtype=float))
+
+
+@_jit
+def _lifted_zonotope_pair(P, C, H, subsets, src, row, sign, size, zero_tol, certify,
+                          span_tol, rank_tol, incidence_tol):
+    G, c, norms = _lifted_generators(P, C, H)
+    n, U = _pair_hyperplane(P)
+    if _short_generator(norms, zero_tol):
+        return np.empty((0, 6)), np.empty(0), c, n, U, False
+    top = 0.0
+    residual = 0.0
+    for j in range(6):
+        top = max(top, norms[j])
+        dot = 0.0
+        for i in range(6):
+            dot += n[i] * G[i, j]
+        residual += dot * dot
+    g = U.T @ G                                  # (5, 6) hull coordinates
+    if not np.sqrt(residual) <= span_tol * top or not _full_rank(g @ g.T, certify):
+        return np.empty((0, 6)), np.empty(0), c, n, U, False
+    a, h = _flat_zonotope_facets(g, norms, subsets, src, row, sign, size, rank_tol,
+                                 incidence_tol)
+    A, b = _zonotope_rows(a @ U.T, h, c)
+    return A, b, c, n, U, True
 
 
 def lifted_zonotope(positions: np.ndarray, centers: np.ndarray, generators: np.ndarray,
@@ -388,6 +478,34 @@ def lifted_zonotope(positions: np.ndarray, centers: np.ndarray, generators: np.n
                                    float(zero_tol), float(certify), float(rank_tol),
                                    float(incidence_tol))
     return (A, b, c) if ok else None
+
+
+def lifted_zonotope_pair(positions: np.ndarray, centers: np.ndarray, generators: np.ndarray,
+                         subsets: np.ndarray, zero_tol: float, certify: float, span_tol: float,
+                         rank_tol: float, incidence_tol: float
+                         ) -> tuple[np.ndarray, ...] | None:
+    r"""
+    Return the AWP of two parallelepiped legs, ``(A, b, c, n, U)``, in one compiled call.
+
+    :func:`lifted_zonotope` for K = 2, whose sum is flat: it spans the hyperplane
+    ``n^\perp``, ``n = (p_1 x p_2, p_2 - p_1)``, with the basis ``U`` (6, 5) taken from ``n``
+    in closed form instead of an SVD. The rank is decided as
+    :func:`awp_ros.geometry.linalg.orthonormal_span` would: the generators' component along
+    ``n`` (rounding) at most ``span_tol`` times the longest, and ``det(g g^T) / tr^5 >
+    certify`` for the hull coordinates ``g = U^T G``; then :func:`flat_zonotope_facets` over
+    ``subsets`` (the lexicographic 4-subsets of the 6 generators) and the rows
+    ``[a U^T; -a U^T]``, ``b = [A_1 c + h; h - A_1 c]``.
+
+    :return: ``(A, b, c, n, U)`` (``n`` the hull's unit normal), or None when a generator is
+        short or the rank is not certified (the caller takes the general code).
+    """
+    src, row, sign, size = wedge_tables(5)
+    A, b, c, n, U, ok = _lifted_zonotope_pair(
+        np.ascontiguousarray(positions, dtype=float), np.ascontiguousarray(centers, dtype=float),
+        np.ascontiguousarray(generators, dtype=float),
+        np.ascontiguousarray(subsets, dtype=np.int64), src, row, sign, size, float(zero_tol),
+        float(certify), float(span_tol), float(rank_tol), float(incidence_tol))
+    return (A, b, c, n, U) if ok else None
 
 
 @_jit(inline=True)
@@ -2783,6 +2901,10 @@ def compile_all() -> None:
     lifted_zonotope(g[:3, :3], g[3:6, :3], rng.normal(size=(3, 3, 3)),
                     np.array(list(combinations(range(9), 5)), dtype=np.int64), 1e-12, 1e-10,
                     1e-9, 1e-9)
+    pair_hyperplane(g[:2, :3])
+    lifted_zonotope_pair(g[:2, :3], g[3:5, :3], rng.normal(size=(2, 3, 3)),
+                         np.array(list(combinations(range(6), 4)), dtype=np.int64), 1e-12,
+                         1e-10, 1e-9, 1e-9, 1e-9)
     polygon_region(g[:2], np.ones(8), None, 1e-9, 1e-12)
     wrench_slice(g.T, np.ones(8), np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1e-9, 1e-12, 0.0)
     box = np.vstack([np.eye(3), -np.eye(3)])

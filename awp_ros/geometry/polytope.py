@@ -77,6 +77,21 @@ class Polytope:
         e.setflags(write=False)
         return E, e
 
+    def with_hyperplane(self, normal: np.ndarray) -> Polytope:
+        """
+        Store the equalities of a hull known to be a hyperplane, ``normal . x = normal . o``.
+
+        For a caller that has the hull's unit ``normal`` (orthogonal to ``hull_basis``, r =
+        n - 1) in closed form, e.g. two stance feet's wrenches: :attr:`equalities` is then
+        not computed. Return ``self``.
+        """
+        E = np.array(normal, dtype=float).reshape(1, -1)
+        e = E @ self.hull_origin
+        E.setflags(write=False)
+        e.setflags(write=False)
+        self.__dict__['equalities'] = (E, e)
+        return self
+
     def halfspaces(self) -> np.ndarray:
         """Return the rows ``[a_1 .. a_n, b]`` of ``a . x <= b``, shape (m, n + 1)."""
         return np.hstack([self.A, self.b[:, None]])

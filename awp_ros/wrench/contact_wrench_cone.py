@@ -198,7 +198,12 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
         lifted = lift_rays(P, rays).reshape(K * sides, 6)
         lifted /= np.sqrt(np.einsum('ij,ij->i', lifted, lifted))[:, None]
     # Full rank certified as orthonormal_span would (the kernel), else its SVD decides.
-    U = identity(6) if full else orthonormal_span(lifted, rtol=span_tol)
+    U = identity(6) if full else None
+    pair = _pair_basis(P, lifted, span_tol) if K == 2 and kernels.ENABLED else None
+    if pair is not None:
+        normal, U = pair
+    elif U is None:
+        U = orthonormal_span(lifted, rtol=span_tol)
     meta = {'kind': 'cone', 'rays': lifted}
     r = U.shape[1]
     rh = lifted if r == 6 else lifted @ U                               # (K N, r)
@@ -211,7 +216,26 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
         A = _facets(rh, tree, r, side_tol, rank_tol)
     if r < 6:
         A = A @ U.T
-    return Polytope(r, np.zeros((0, 6)), A, np.zeros(A.shape[0]), origin, U, meta)
+    cone = Polytope(r, np.zeros((0, 6)), A, np.zeros(A.shape[0]), origin, U, meta)
+    return cone if pair is None else cone.with_hyperplane(normal)
+
+
+def _pair_basis(P: np.ndarray, lifted: np.ndarray,
+                span_tol: float) -> tuple[np.ndarray, np.ndarray] | None:
+    r"""
+    Return ``(n, U)`` of two feet's wrench hyperplane when it spans their lifted rays, else None.
+
+    The closed-form ``(n, U)`` of :func:`awp_ros.geometry.kernels.pair_hyperplane` replaces
+    :func:`~awp_ros.geometry.linalg.orthonormal_span`'s SVD when it decides the same rank 5:
+    the unit rays' component along ``n`` (rounding) is at most ``span_tol`` (so the sixth
+    singular value is below ``span_tol`` times the first, which is >= 1), and the rays in
+    hull coordinates pass ``orthonormal_span``'s own full-rank certificate.
+    """
+    n, U = kernels.pair_hyperplane(P)
+    along = lifted @ n
+    if not float(along @ along) <= span_tol * span_tol:
+        return None
+    return (n, U) if orthonormal_span(lifted @ U, rtol=span_tol).shape == (5, 5) else None
 
 
 def _kernel_facets(rh: np.ndarray, subsets: np.ndarray, key: tuple, side_tol: float,

@@ -106,6 +106,16 @@ def actuation_wrench_polytope(positions: np.ndarray, centers: np.ndarray,
             A, b, c = fused
             return Polytope(6, np.zeros((0, 6)), A, b, c, identity(6),
                             {'kind': 'zonotope', 'generators': 3 * K})
+    if kernels.ENABLED and K == 2 and not with_vertices:      # a hyperplane of R^6
+        tol = {**ZONOTOPE_TOLS, **zonotope_tols}
+        fused = kernels.lifted_zonotope_pair(P, C, H, facet_subsets(6, 4), tol['zero_tol'],
+                                             max(tol['span_tol'] ** 2, GRAM_CERTIFY),
+                                             tol['span_tol'], tol['rank_tol'],
+                                             tol['incidence_tol'])
+        if fused is not None:       # certified 5-dimensional (else the general code decides)
+            A, b, c, n, U = fused
+            return Polytope(5, np.zeros((0, 6)), A, b, c, U,
+                            {'kind': 'zonotope', 'generators': 6}).with_hyperplane(n)
     # One lift for the centre and the three generators of every leg: (K, 4, 6).
     lifted = lift_points(P, np.concatenate([C[:, None, :], H.transpose(0, 2, 1)], axis=1))
     center = np.sum(lifted[:, 0, :], axis=0)
@@ -166,7 +176,10 @@ def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 
         if radius is None or radius < -interior_tol:
             return Polytope.empty(n)
         meta['degenerate'] = radius <= interior_tol
-    return Polytope(U.shape[1], np.zeros((0, n)), A, b, origin, U, meta)
+    fwp = Polytope(U.shape[1], np.zeros((0, n)), A, b, origin, U, meta)
+    if same and U is awp.hull_basis and 'equalities' in awp.__dict__:
+        fwp.__dict__['equalities'] = awp.equalities          # the same hull, known already
+    return fwp
 
 
 def _check_legs(positions: np.ndarray, centers: np.ndarray,

@@ -217,7 +217,12 @@ def test_cone_recheck_equals_full_computation_along_a_random_walk():
 
 @pytest.mark.parametrize('seed', range(4))
 def test_flat_sets_equal_the_numpy_code(seed):
-    """Two stance legs span a 5D cone and AWP (one leg: 3D): the flat kernels, same rows."""
+    """
+    Two stance legs span a 5D cone and AWP (one leg: 3D): the flat kernels, same rows.
+
+    Two legs' hull basis is the closed-form one (not the SVD's): the same rows, in another
+    order and sign (the orientation of the basis), and the same hull.
+    """
     from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope
     rng = np.random.default_rng(seed)
     for K, dim in ((2, 5), (1, 3)):
@@ -225,13 +230,17 @@ def test_flat_sets_equal_the_numpy_code(seed):
         fast = contact_wrench_cone(p, n, mu, 4 + seed % 2)
         slow = _numpy(contact_wrench_cone, p, n, mu, 4 + seed % 2)
         assert fast.dimension == slow.dimension == dim
-        np.testing.assert_allclose(fast.A, slow.A, atol=1e-12)
         C, H = rng.normal(size=(K, 3)) * 50.0, rng.normal(size=(K, 3, 3)) * 100.0
-        fast = actuation_wrench_polytope(p, C, H)
-        slow = _numpy(actuation_wrench_polytope, p, C, H)
-        assert fast.dimension == slow.dimension == (5 if K == 2 else 3)
+        fast_awp = actuation_wrench_polytope(p, C, H)
+        slow_awp = _numpy(actuation_wrench_polytope, p, C, H)
+        assert fast_awp.dimension == slow_awp.dimension == (5 if K == 2 else 3)
+        if K == 2:
+            _same_hrep(fast, slow)
+            _same_hrep(fast_awp, slow_awp)
+            continue
         np.testing.assert_allclose(fast.A, slow.A, atol=1e-12)
-        np.testing.assert_allclose(fast.b, slow.b, rtol=1e-12, atol=1e-8)
+        np.testing.assert_allclose(fast_awp.A, slow_awp.A, atol=1e-12)
+        np.testing.assert_allclose(fast_awp.b, slow_awp.b, rtol=1e-12, atol=1e-8)
 
 
 def test_contact_wrench_cone_with_reuse_equals_the_numpy_code_on_a_walk():
@@ -379,6 +388,87 @@ def test_lifted_zonotope_equals_the_numpy_awp(seed):
         assert a.dimension == b.dimension
         np.testing.assert_allclose(a.A, b.A, atol=1e-12)
     assert actuation_wrench_polytope(np.zeros((K, 3)), C, H).dimension == 3
+
+
+def _same_hrep(fast, slow):
+    """Assert two H-reps have the same rows (any order) and the same hull as the reference."""
+    assert fast.dimension == slow.dimension
+    assert _same_rows(np.hstack([fast.A, fast.b[:, None] / 1e3]),
+                      np.hstack([slow.A, slow.b[:, None] / 1e3]), tol=1e-9)
+    U, V = fast.hull_basis, slow.hull_basis
+    np.testing.assert_allclose(U @ U.T, V @ V.T, atol=1e-12)
+    np.testing.assert_allclose(U.T @ U, np.eye(U.shape[1]), atol=1e-14)
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_two_leg_awp_equals_the_numpy_reference_and_its_vertices(seed):
+    """K = 2: the closed-form hyperplane basis against the SVD's, rows against the 64 vertices."""
+    from awp_ros.geometry.polytope import Polytope
+    from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope
+    rng = np.random.default_rng(seed)
+    p = rng.normal(size=(2, 3)) * 0.3
+    p[:, 2] = -0.5 + 0.02 * rng.normal(size=2)
+    if seed == 5:
+        p[1] = p[0] + [1e-3, 0.0, 0.0]                       # feet 1 mm apart
+    C, H = rng.normal(size=(2, 3)) * 50.0, rng.normal(size=(2, 3, 3)) * 100.0
+    fast = actuation_wrench_polytope(p, C, H)
+    slow = _numpy(actuation_wrench_polytope, p, C, H)
+    assert fast.dimension == 5
+    _same_hrep(fast, slow)
+    # the definition: every row supports the sum of the lifted parallelepipeds (a vertex on
+    # it, none beyond), and the hyperplane holds every vertex
+    G = np.concatenate([np.vstack([H[k], np.cross(p[k], H[k].T).T]) for k in range(2)], axis=1)
+    c = sum(np.concatenate([C[k], np.cross(p[k], C[k])]) for k in range(2))
+    signs = np.array(np.meshgrid(*[[-1.0, 1.0]] * 6)).reshape(6, -1)
+    V = c[:, None] + G @ signs                                                  # (6, 64)
+    support = (fast.A @ V).max(axis=1)
+    np.testing.assert_allclose(support, fast.b, rtol=1e-10, atol=1e-7)
+    E, e = fast.equalities
+    np.testing.assert_allclose(E @ V - e[:, None], 0.0, atol=1e-8)
+    fresh = Polytope(5, fast.vertices, fast.A, fast.b, fast.hull_origin, fast.hull_basis)
+    assert abs(float((fresh.equalities[0] @ E.T)[0, 0])) == pytest.approx(1.0, abs=1e-12)
+
+
+def test_two_leg_awp_kernel_declines_what_it_cannot_certify():
+    """Coincident feet, a zero generator: the general code answers; a singular leg: 5D too."""
+    from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope
+    rng = np.random.default_rng(11)
+    p = np.array([[0.3, 0.2, -0.5], [-0.3, -0.2, -0.5]])
+    C, H = rng.normal(size=(2, 3)) * 50.0, rng.normal(size=(2, 3, 3)) * 100.0
+    singular = H.copy()
+    singular[0, :, 2] = singular[0, :, 0] + singular[0, :, 1]             # rank 2 leg
+    zero = H.copy()
+    zero[1, :, 0] = 0.0
+    subsets = _combinations(6, 4)[0]
+    fast = actuation_wrench_polytope(p, C, singular)      # one leg flat, the sum still 5D
+    assert fast.dimension == 5
+    _same_hrep(fast, _numpy(actuation_wrench_polytope, p, C, singular))
+    for P, G in ((np.zeros((2, 3)), H), (p, zero)):
+        assert kernels.lifted_zonotope_pair(P, C, G, subsets, 1e-12, 1e-10, 1e-9, 1e-9,
+                                            1e-9) is None
+        fast, slow = actuation_wrench_polytope(P, C, G), _numpy(actuation_wrench_polytope,
+                                                                P, C, G)
+        assert fast.dimension == slow.dimension     # 3 (one point), 5 (five generators)
+        np.testing.assert_allclose(fast.A, slow.A, atol=1e-12)
+
+
+@pytest.mark.parametrize('seed,sides,tilt', [(0, 4, 0.0), (1, 4, 0.3), (2, 6, 0.1), (3, 3, 0.0)])
+def test_two_leg_cwc_equals_the_numpy_reference(seed, sides, tilt):
+    """K = 2: the closed-form hyperplane basis, the same facets; frictionless feet decline."""
+    rng = np.random.default_rng(seed)
+    p, n, mu = _cwc_rays(rng, K=2, sides=sides, tilt=tilt)
+    fast = contact_wrench_cone(p, n, mu, sides)
+    slow = _numpy(contact_wrench_cone, p, n, mu, sides)
+    assert fast.dimension == 5
+    _same_hrep(fast, slow)
+    E, e = fast.equalities
+    np.testing.assert_allclose(E @ fast.meta['rays'].T, 0.0, atol=1e-12)   # every ray on it
+    # frictionless feet (rays along the normals only: 2 dimensions) and one foot twice
+    for P, m in ((p, np.zeros(2)), (np.repeat(p[:1], 2, axis=0), mu)):
+        fast, slow = contact_wrench_cone(P, n, m, sides), _numpy(contact_wrench_cone, P, n, m,
+                                                                   sides)
+        assert fast.dimension == slow.dimension < 5
+        _same_hrep(fast, slow)
 
 
 def test_lifted_rays_are_the_unit_lifts_and_certify_the_rank():
