@@ -465,8 +465,8 @@ def test_two_leg_cwc_equals_the_numpy_reference(seed, sides, tilt):
     np.testing.assert_allclose(E @ fast.meta['rays'].T, 0.0, atol=1e-12)   # every ray on it
     # frictionless feet (rays along the normals only: 2 dimensions) and one foot twice
     for P, m in ((p, np.zeros(2)), (np.repeat(p[:1], 2, axis=0), mu)):
-        fast, slow = contact_wrench_cone(P, n, m, sides), _numpy(contact_wrench_cone, P, n, m,
-                                                                   sides)
+        fast = contact_wrench_cone(P, n, m, sides)
+        slow = _numpy(contact_wrench_cone, P, n, m, sides)
         assert fast.dimension == slow.dimension < 5
         _same_hrep(fast, slow)
 
