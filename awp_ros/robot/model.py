@@ -176,6 +176,10 @@ class RobotModel:
                           'legs must not share joints'
                     raise ConfigError(msg)
                 owners[name] = foot
+        # Per foot: its frame and its joints' columns, a slice when they are consecutive
+        # (a view, not numpy's copy by an index array, in the per-cycle Jacobians).
+        self._leg_columns = {foot: (leg.frame_id, _columns(leg.v_idx))
+                             for foot, leg in self.legs.items()}
         config.check_joints(self.joint_names, owners)   # limits of unknown joints: errors
         lower = model.lowerPositionLimit[7:]
         upper = model.upperPositionLimit[7:]
@@ -289,10 +293,19 @@ class RobotModel:
         p = np.empty((K, 3))
         J, bias = [], []
         lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
+        oMf, columns = data.oMf, self._leg_columns
         for k, foot in enumerate(stance):
-            leg = self.legs[foot]
-            p[k] = data.oMf[leg.frame_id].translation
-            J.append(pin.getFrameJacobian(model, data, leg.frame_id, lwa)[:3, leg.v_idx])
-            bias.append(tau[leg.v_idx])
+            frame_id, cols = columns[foot]
+            p[k] = oMf[frame_id].translation
+            J.append(pin.getFrameJacobian(model, data, frame_id, lwa)[:3, cols])
+            bias.append(tau[cols])
         p -= com
         return Kinematics(self.total_mass, com, wrench, p, J, bias)
+
+
+def _columns(idx: np.ndarray) -> slice | np.ndarray:
+    """Return ``idx`` as a slice when its entries are consecutive and increasing, else itself."""
+    idx = np.asarray(idx, dtype=int)
+    if idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size)):
+        return slice(int(idx[0]), int(idx[0]) + idx.size)
+    return idx

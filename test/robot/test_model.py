@@ -118,3 +118,14 @@ def test_torque_limit_overrides_replace_urdf_effort():
     np.testing.assert_array_equal(model.legs['a_foot'].tau_min, [-10.0, -1.0, -30.0])
     np.testing.assert_array_equal(model.legs['a_foot'].tau_max, [10.0, 4.0, 30.0])
     np.testing.assert_array_equal(model.legs['b_foot'].tau_max, [10.0, 2.0, 30.0])
+
+
+def test_leg_columns_are_slices_of_consecutive_joints_and_index_arrays_otherwise():
+    from awp_ros.robot.model import _columns
+    assert _columns(np.array([6, 7, 8])) == slice(6, 9)
+    for idx in ([6, 8, 7], [9, 10, 12], []):
+        out = _columns(np.array(idx, dtype=int))
+        assert isinstance(out, np.ndarray) and out.tolist() == idx
+    v = np.arange(20.0) * 3.0
+    for idx in ([6, 7, 8], [9, 7, 12]):
+        np.testing.assert_array_equal(v[_columns(np.array(idx))], v[idx])
