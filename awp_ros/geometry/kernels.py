@@ -2820,6 +2820,65 @@ def batched_vertices(A: np.ndarray, b: np.ndarray, tri: np.ndarray, eps: np.ndar
     return V[:starts[K]], starts, facet, full
 
 
+
+@_jit
+def _inside_forces(V, A, b, rows, margin):
+    K, nv = V.shape[0], V.shape[1]
+    m, nr = A.shape[1], rows.shape[1]
+    out = np.zeros(K, dtype=np.bool_)
+    for k in range(K):
+        for i in range(nv):                  # a vertex strictly inside every pyramid plane
+            inside = True
+            for r in range(nr):
+                s = V[k, i, 0] * rows[k, r, 0] + V[k, i, 1] * rows[k, r, 1] \
+                    + V[k, i, 2] * rows[k, r, 2]
+                if not s < -margin:
+                    inside = False
+                    break
+            if inside:
+                out[k] = True
+                break
+        if out[k]:
+            continue
+        n0, n1, n2 = -rows[k, nr - 1, 0], -rows[k, nr - 1, 1], -rows[k, nr - 1, 2]
+        lo = -np.inf                         # the axis t n: every pyramid row below -margin
+        proper = True
+        for r in range(nr):
+            rn = rows[k, r, 0] * n0 + rows[k, r, 1] * n1 + rows[k, r, 2] * n2
+            if not rn < 0.0:
+                proper = False
+                break
+            lo = max(lo, margin / -rn)
+        if not proper:
+            continue
+        hi = np.inf                          # ... and inside A f <= b (three ratio tests)
+        for r in range(m):
+            an = A[k, r, 0] * n0 + A[k, r, 1] * n1 + A[k, r, 2] * n2
+            if an > 0.0:
+                hi = min(hi, b[k, r] / an)
+            elif an < 0.0:
+                lo = max(lo, b[k, r] / an)
+            elif b[k, r] < 0.0:
+                proper = False
+        out[k] = proper and lo < hi
+    return out
+
+
+def inside_forces(V: np.ndarray, A: np.ndarray, b: np.ndarray, rows: np.ndarray,
+                  margin: float) -> np.ndarray:
+    """
+    Return :func:`awp_ros.wrench.friction_polytope.inside_force` of K full-dimensional legs.
+
+    The same two tests, in the same order, on the legs' stacked vertices ``V`` (K, n_v, 3)
+    and H-reps ``A`` (K, m, 3), ``b`` (K, m) [N] (the batched parallelepipeds), with the
+    pyramid ``rows`` (K, N + 1, 3): a vertex with every row ``< -margin``, else the axis
+    ``t n_k`` (``n_k = -rows_k[-1]``), whose interval of ``t`` is three ratio tests.
+    """
+    return _inside_forces(np.ascontiguousarray(V, dtype=float),
+                          np.ascontiguousarray(A, dtype=float),
+                          np.ascontiguousarray(b, dtype=float),
+                          np.ascontiguousarray(rows, dtype=float), float(margin))
+
 @_jit(fastmath=True)
 def _ratio_test(A, b, w, D, feasibility_tol, parallel_tol, t_hi, t_lo, empty):
     """Run the ratio test, a branch-free pass over the rows per direction (:func:`ratio_test`)."""
@@ -2925,6 +2984,7 @@ def compile_all() -> None:
                      index, 3, 2, 1, 0.0)                   # the general kernel
     first_of_equal_rows(g, 10)
     ratio_test(g.T, np.ones(8), np.zeros(6), np.eye(6), 1e-6, 1e-9)
+    inside_forces(cube[None], box[None], np.ones((1, 6)), -box[None, :3], 1e-6)
     batched_vertices(box[None], np.ones((1, 6)), np.array([[0, 1, 2]]), np.ones(1), 1e-12)
     groups = {d: (rng.normal(size=(2, 2, d, 3)), rng.normal(size=(2, 2, 2, 2, 3)),
                   np.ones((2, 2, 2), dtype=bool), np.full(2, 2)) for d in (1, 2, 3)}

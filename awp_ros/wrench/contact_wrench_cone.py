@@ -192,7 +192,7 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
                         np.zeros((6, 0)), {'kind': 'cone', 'rays': np.zeros((0, 6))})
     rays = _cached_rays(np.ascontiguousarray(N_).tobytes(), mu.tobytes(), sides)
     full = False
-    if kernels.ENABLED and K >= 3 and K * sides <= kernels.MAX_BITS:
+    if kernels.ENABLED and K >= 2 and K * sides <= kernels.MAX_BITS:
         lifted, full = kernels.lifted_rays(P, rays, max(span_tol ** 2, GRAM_CERTIFY))
     else:
         lifted = lift_rays(P, rays).reshape(K * sides, 6)

@@ -141,7 +141,9 @@ def inside_force(forces: Sequence[Polytope], rows: np.ndarray, *,
     row is ``t (a . n_k) < -margin`` once ``t`` is large enough: a leg carrying load
     pushes near its normal, where a parallelepiped's vertices can all lie outside the
     pyramid. False does not prove emptiness (the pyramid may cut a face off the axis and
-    off the vertices): compute (1).
+    off the vertices): compute (1). With the compiled kernels, legs that are all
+    full-dimensional and of one shape (the parallelepipeds of 3-joint legs) take
+    :func:`awp_ros.geometry.kernels.inside_forces`, whose reference is the numpy code here.
 
     :param forces: K force polytopes in R^3 [N] with their vertices and H-reps.
     :param rows: (K, N + 1, 3) unit outward rows of each leg's pyramid (:func:`friction_rows`).
@@ -149,6 +151,12 @@ def inside_force(forces: Sequence[Polytope], rows: np.ndarray, *,
     :return: boolean array (K,).
     """
     K = len(forces)
+    if kernels.ENABLED and K and all(F.dimension == 3 and F.vertices.shape
+                                     == forces[0].vertices.shape and F.A.shape
+                                     == forces[0].A.shape for F in forces):
+        return kernels.inside_forces(np.array([F.vertices for F in forces]),
+                                     np.array([F.A for F in forces]),
+                                     np.array([F.b for F in forces]), rows, margin)
     if K and all(F.vertices.shape == forces[0].vertices.shape for F in forces):
         V = np.array([F.vertices for F in forces])                     # (K, n_v, 3)
         s = V @ rows.transpose(0, 2, 1)                                 # (K, n_v, N + 1)

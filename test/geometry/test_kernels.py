@@ -807,3 +807,30 @@ def test_survivor_normals_equal_the_numpy_reference_and_the_general_kernel(p, q)
     ref /= np.linalg.norm(ref, axis=1)[:, None]
     ref[300:] *= -1.0
     np.testing.assert_allclose(a, ref, atol=1e-12)
+
+
+@pytest.mark.parametrize('seed', range(3))
+def test_inside_forces_equals_the_numpy_inside_force(seed):
+    """Parallelepiped legs pushing well, a little, not at all, sideways; tilted pyramids."""
+    from awp_ros.wrench.force_polytope import force_polytope
+    from awp_ros.wrench.friction_polytope import friction_rows, inside_force
+    rng = np.random.default_rng(seed)
+    K = 60
+    forces = []
+    for k in range(K):
+        J = rng.normal(size=(3, 3)) * 0.3 + np.diag([0.4, 0.4, 0.4])
+        bias = rng.normal(size=3) * 30.0 + [0.0, 0.0, (-60.0, -31.0, 0.0, 20.0)[k % 4]]
+        forces.append(force_polytope(J, bias, -np.full(3, 40.0), np.full(3, 40.0)))
+    assert all(F.dimension == 3 for F in forces)
+    normals = np.array([0.0, 0.0, 1.0]) + rng.uniform(-0.6, 0.6, size=(K, 3))
+    normals /= np.linalg.norm(normals, axis=1)[:, None]
+    rows = friction_rows(normals, rng.uniform(0.2, 1.0, K), 4 + seed)
+    for chunk in range(0, K, 4):                   # the node's batches: one stance each
+        legs = forces[chunk:chunk + 4]
+        fast = inside_force(legs, rows[chunk:chunk + 4])
+        slow = _numpy(inside_force, legs, rows[chunk:chunk + 4])
+        np.testing.assert_array_equal(fast, slow)
+    both = inside_force(forces, rows)
+    V = np.array([F.vertices for F in forces])
+    by_vertex = (V @ rows.transpose(0, 2, 1) < -1e-6).all(axis=2).any(axis=1)
+    assert by_vertex.any() and (both & ~by_vertex).any() and not both.all()   # all 3 drawn
