@@ -2820,7 +2820,6 @@ def batched_vertices(A: np.ndarray, b: np.ndarray, tri: np.ndarray, eps: np.ndar
     return V[:starts[K]], starts, facet, full
 
 
-
 @_jit
 def _inside_forces(V, A, b, rows, margin):
     K, nv = V.shape[0], V.shape[1]
@@ -2878,6 +2877,7 @@ def inside_forces(V: np.ndarray, A: np.ndarray, b: np.ndarray, rows: np.ndarray,
                           np.ascontiguousarray(A, dtype=float),
                           np.ascontiguousarray(b, dtype=float),
                           np.ascontiguousarray(rows, dtype=float), float(margin))
+
 
 @_jit(fastmath=True)
 def _ratio_test(A, b, w, D, feasibility_tol, parallel_tol, t_hi, t_lo, empty):
