@@ -461,6 +461,8 @@ def lifted_zonotope(positions: np.ndarray, centers: np.ndarray, generators: np.n
     r"""
     Return the AWP of K >= 3 parallelepiped legs, ``(A, b, c)``, in one compiled call.
 
+    (Two legs: :func:`lifted_zonotope_pair`.)
+
     :func:`awp_ros.wrench.wrench_polytope.actuation_wrench_polytope` and
     :func:`awp_ros.geometry.zonotope.zonotope` fused for the full-dimensional case: the lifted
     centre ``c = sum_k L_k c_k`` and generators ``L_k H_k``, the full rank certified as
