@@ -137,22 +137,84 @@ def wedge_tables(d: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray
     return src, row, sign, size
 
 
-_SRC6, _ROW6, _SIGN6, _ = wedge_tables(6)
-
-
 @_jit(inline=True)
-def _wedge6(W, V, j, k, outputs):
-    """Level ``k`` of the R^6 tables into ``W[k]`` (``outputs = C(6, k + 1)``, constant)."""
-    for o in range(outputs):
-        acc = 0.0
-        for t in range(k + 1):
-            acc += _SIGN6[k, o, t] * W[k - 1, _SRC6[k, o, t]] * V[_ROW6[k, o, t], j]
-        W[k, o] = acc
+def _wedge6(W, V, j, k):
+    """
+    Level ``k`` of :func:`wedge_tables` (6), unrolled: ``W[k] = W[k - 1] ^ V[:, j]``.
+
+    Each line is ``sum_t sign[k, o, t] W[k - 1, src[k, o, t]] V[row[k, o, t], j]`` in the
+    tables' term order (the same sums as a loop over the tables, without their lookups);
+    ``test_unrolled_wedges_are_the_tables`` regenerates these lines from the tables.
+    """
+    if k == 1:
+        v0, v1, v2, v3, v4, v5 = V[0, j], V[1, j], V[2, j], V[3, j], V[4, j], V[5, j]
+        W[1, 0] = -W[0, 1] * v0 + W[0, 0] * v1
+        W[1, 1] = -W[0, 2] * v0 + W[0, 0] * v2
+        W[1, 2] = -W[0, 3] * v0 + W[0, 0] * v3
+        W[1, 3] = -W[0, 4] * v0 + W[0, 0] * v4
+        W[1, 4] = -W[0, 5] * v0 + W[0, 0] * v5
+        W[1, 5] = -W[0, 2] * v1 + W[0, 1] * v2
+        W[1, 6] = -W[0, 3] * v1 + W[0, 1] * v3
+        W[1, 7] = -W[0, 4] * v1 + W[0, 1] * v4
+        W[1, 8] = -W[0, 5] * v1 + W[0, 1] * v5
+        W[1, 9] = -W[0, 3] * v2 + W[0, 2] * v3
+        W[1, 10] = -W[0, 4] * v2 + W[0, 2] * v4
+        W[1, 11] = -W[0, 5] * v2 + W[0, 2] * v5
+        W[1, 12] = -W[0, 4] * v3 + W[0, 3] * v4
+        W[1, 13] = -W[0, 5] * v3 + W[0, 3] * v5
+        W[1, 14] = -W[0, 5] * v4 + W[0, 4] * v5
+    elif k == 2:
+        v0, v1, v2, v3, v4, v5 = V[0, j], V[1, j], V[2, j], V[3, j], V[4, j], V[5, j]
+        W[2, 0] = W[1, 5] * v0 - W[1, 1] * v1 + W[1, 0] * v2
+        W[2, 1] = W[1, 6] * v0 - W[1, 2] * v1 + W[1, 0] * v3
+        W[2, 2] = W[1, 7] * v0 - W[1, 3] * v1 + W[1, 0] * v4
+        W[2, 3] = W[1, 8] * v0 - W[1, 4] * v1 + W[1, 0] * v5
+        W[2, 4] = W[1, 9] * v0 - W[1, 2] * v2 + W[1, 1] * v3
+        W[2, 5] = W[1, 10] * v0 - W[1, 3] * v2 + W[1, 1] * v4
+        W[2, 6] = W[1, 11] * v0 - W[1, 4] * v2 + W[1, 1] * v5
+        W[2, 7] = W[1, 12] * v0 - W[1, 3] * v3 + W[1, 2] * v4
+        W[2, 8] = W[1, 13] * v0 - W[1, 4] * v3 + W[1, 2] * v5
+        W[2, 9] = W[1, 14] * v0 - W[1, 4] * v4 + W[1, 3] * v5
+        W[2, 10] = W[1, 9] * v1 - W[1, 6] * v2 + W[1, 5] * v3
+        W[2, 11] = W[1, 10] * v1 - W[1, 7] * v2 + W[1, 5] * v4
+        W[2, 12] = W[1, 11] * v1 - W[1, 8] * v2 + W[1, 5] * v5
+        W[2, 13] = W[1, 12] * v1 - W[1, 7] * v3 + W[1, 6] * v4
+        W[2, 14] = W[1, 13] * v1 - W[1, 8] * v3 + W[1, 6] * v5
+        W[2, 15] = W[1, 14] * v1 - W[1, 8] * v4 + W[1, 7] * v5
+        W[2, 16] = W[1, 12] * v2 - W[1, 10] * v3 + W[1, 9] * v4
+        W[2, 17] = W[1, 13] * v2 - W[1, 11] * v3 + W[1, 9] * v5
+        W[2, 18] = W[1, 14] * v2 - W[1, 11] * v4 + W[1, 10] * v5
+        W[2, 19] = W[1, 14] * v3 - W[1, 13] * v4 + W[1, 12] * v5
+    elif k == 3:
+        v0, v1, v2, v3, v4, v5 = V[0, j], V[1, j], V[2, j], V[3, j], V[4, j], V[5, j]
+        W[3, 0] = -W[2, 10] * v0 + W[2, 4] * v1 - W[2, 1] * v2 + W[2, 0] * v3
+        W[3, 1] = -W[2, 11] * v0 + W[2, 5] * v1 - W[2, 2] * v2 + W[2, 0] * v4
+        W[3, 2] = -W[2, 12] * v0 + W[2, 6] * v1 - W[2, 3] * v2 + W[2, 0] * v5
+        W[3, 3] = -W[2, 13] * v0 + W[2, 7] * v1 - W[2, 2] * v3 + W[2, 1] * v4
+        W[3, 4] = -W[2, 14] * v0 + W[2, 8] * v1 - W[2, 3] * v3 + W[2, 1] * v5
+        W[3, 5] = -W[2, 15] * v0 + W[2, 9] * v1 - W[2, 3] * v4 + W[2, 2] * v5
+        W[3, 6] = -W[2, 16] * v0 + W[2, 7] * v2 - W[2, 5] * v3 + W[2, 4] * v4
+        W[3, 7] = -W[2, 17] * v0 + W[2, 8] * v2 - W[2, 6] * v3 + W[2, 4] * v5
+        W[3, 8] = -W[2, 18] * v0 + W[2, 9] * v2 - W[2, 6] * v4 + W[2, 5] * v5
+        W[3, 9] = -W[2, 19] * v0 + W[2, 9] * v3 - W[2, 8] * v4 + W[2, 7] * v5
+        W[3, 10] = -W[2, 16] * v1 + W[2, 13] * v2 - W[2, 11] * v3 + W[2, 10] * v4
+        W[3, 11] = -W[2, 17] * v1 + W[2, 14] * v2 - W[2, 12] * v3 + W[2, 10] * v5
+        W[3, 12] = -W[2, 18] * v1 + W[2, 15] * v2 - W[2, 12] * v4 + W[2, 11] * v5
+        W[3, 13] = -W[2, 19] * v1 + W[2, 15] * v3 - W[2, 14] * v4 + W[2, 13] * v5
+        W[3, 14] = -W[2, 19] * v2 + W[2, 18] * v3 - W[2, 17] * v4 + W[2, 16] * v5
+    elif k == 4:
+        v0, v1, v2, v3, v4, v5 = V[0, j], V[1, j], V[2, j], V[3, j], V[4, j], V[5, j]
+        W[4, 0] = W[3, 10] * v0 - W[3, 6] * v1 + W[3, 3] * v2 - W[3, 1] * v3 + W[3, 0] * v4
+        W[4, 1] = W[3, 11] * v0 - W[3, 7] * v1 + W[3, 4] * v2 - W[3, 2] * v3 + W[3, 0] * v5
+        W[4, 2] = W[3, 12] * v0 - W[3, 8] * v1 + W[3, 5] * v2 - W[3, 2] * v4 + W[3, 1] * v5
+        W[4, 3] = W[3, 13] * v0 - W[3, 9] * v1 + W[3, 5] * v3 - W[3, 4] * v4 + W[3, 3] * v5
+        W[4, 4] = W[3, 14] * v0 - W[3, 9] * v2 + W[3, 8] * v3 - W[3, 7] * v4 + W[3, 6] * v5
+        W[4, 5] = W[3, 14] * v1 - W[3, 13] * v2 + W[3, 12] * v3 - W[3, 11] * v4 + W[3, 10] * v5
 
 
 @_jit(inline=True)
 def _subset_normal6(V, subsets, s, prev, W, out):
-    """:func:`_subset_normal` in R^6 with constant tables and trip counts (unrolled)."""
+    """:func:`_subset_normal_any` in R^6, its wedge levels unrolled (:func:`_wedge6`)."""
     start = 0
     while start < 5 and subsets[s, start] == prev[start]:
         start += 1
@@ -162,14 +224,9 @@ def _subset_normal6(V, subsets, s, prev, W, out):
         if k == 0:
             for i in range(6):
                 W[0, i] = V[i, j]
-        elif k == 1:
-            _wedge6(W, V, j, 1, 15)
-        elif k == 2:
-            _wedge6(W, V, j, 2, 20)
-        elif k == 3:
-            _wedge6(W, V, j, 3, 15)
         else:
-            _wedge6(W, V, j, 4, 6)
+            _wedge6(W, V, j, k)
+        if k == 4:
             for i in range(6):           # n_i = (-1)^i W_{[6] \ {i}}, that subset 5 - i
                 out[i] = W[4, 5 - i] if i % 2 == 0 else -W[4, 5 - i]
 

@@ -35,6 +35,25 @@ def test_cross_products_equal_the_numpy_reference_and_are_orthogonal(seed):
         np.testing.assert_allclose(M.T @ n[s], 0.0, atol=1e-10)
 
 
+def test_unrolled_wedges_are_the_tables():
+    """Every line of the unrolled R^6 wedge is the Laplace expansion of ``wedge_tables(6)``."""
+    import inspect
+    src, row, sign, _ = kernels.wedge_tables(6)
+    code = inspect.getsource(kernels._wedge6.py_func)
+    lines = {line.strip() for line in code.splitlines()}
+    count = 0
+    for k, outputs in ((1, 15), (2, 20), (3, 15), (4, 6)):
+        for o in range(outputs):
+            terms = [(sign[k, o, t], f'W[{k - 1}, {src[k, o, t]}] * v{row[k, o, t]}')
+                     for t in range(k + 1)]
+            expr = ('-' if terms[0][0] < 0 else '') + terms[0][1]
+            for sg, term in terms[1:]:
+                expr += f' {"-" if sg < 0 else "+"} {term}'
+            assert f'W[{k}, {o}] = {expr}' in lines, (k, o, expr)
+            count += 1
+    assert count == 56 and sum(line.startswith('W[') for line in lines) == 56
+
+
 def _awp_generators(rng, K=4):
     """Lifted parallelepiped generators of K legs: the AWP's structure (shared 5D spans)."""
     p = rng.normal(size=(K, 3)) * 0.3
