@@ -299,44 +299,59 @@ def _zonotope_row(h, masks, multi, kept, total, mask, extra):
     return kept + 1
 
 
-@_jit
-def _zonotope_facets(g, norms, subsets, rank_tol, incidence_tol):
+@_jit(inline=True)
+def _facet_rows6(g, norms, subsets, others, rank_tol, incidence_tol, out, h, masks, multi):
+    """
+    Store eqs. (1)-(3) of every 5-subset of the generators ``g`` (6, m) in row buffers.
+
+    Row ``kept`` of ``out`` gets the unit normal, ``h`` its support, ``masks`` its incidence,
+    ``multi`` whether more than the subset is incident; returns the number of rows stored.
+    ``others[s]`` lists the generators not in subset ``s``: the subset's own are on the facet
+    (``|a . g_j|`` is rounding), so the mask starts with them and only the others count.
+    """
     r, m = g.shape
     n_sub = subsets.shape[0]
-    a, masks, multi = _row_buffers(n_sub, r)
-    h = np.empty(n_sub)
     U = g / norms                                    # unit generators (columns)
-    gT = np.ascontiguousarray(g.T)
     limit = incidence_tol * norms
-    normals = _cross_products(U, subsets)            # eq. (1) of every subset, then its row
+    W, prev, n = _scratch(r)
+    d = np.empty(m)
     kept = 0
     for s in range(n_sub):
-        n0, n1, n2 = normals[s, 0], normals[s, 1], normals[s, 2]
-        n3, n4, n5 = normals[s, 3], normals[s, 4], normals[s, 5]
+        _subset_normal6(U, subsets, s, prev, W, n)           # eq. (1)
+        n0, n1, n2, n3, n4, n5 = n[0], n[1], n[2], n[3], n[4], n[5]
         vol = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2 + n3 * n3 + n4 * n4 + n5 * n5)
         if not vol > rank_tol:
             continue
         inv = 1.0 / vol
         n0, n1, n2, n3, n4, n5 = n0 * inv, n1 * inv, n2 * inv, n3 * inv, n4 * inv, n5 * inv
-        # The subset's own generators are on the facet (|a . g_j| is rounding): the mask
-        # starts with them and only the others are dotted (eq. 2, eq. 3).
+        # |a . g_j| for every generator at once (a loop LLVM vectorises), then the others'
+        # in increasing j from the table (no branch on the mask per generator).
+        for j in range(m):
+            d[j] = abs(n0 * g[0, j] + n1 * g[1, j] + n2 * g[2, j] + n3 * g[3, j]
+                       + n4 * g[4, j] + n5 * g[5, j])
         mask = 0
         for t in range(r - 1):
             mask |= np.int64(1) << subsets[s, t]
         total = 0.0
         count = r - 1
-        for j in range(m):
-            if (mask >> j) & 1:
-                continue
-            dot = abs(n0 * gT[j, 0] + n1 * gT[j, 1] + n2 * gT[j, 2] + n3 * gT[j, 3]
-                      + n4 * gT[j, 4] + n5 * gT[j, 5])
-            total += dot
-            if dot <= limit[j]:
+        for t in range(others.shape[1]):                  # eqs. (2), (3)
+            j = others[s, t]
+            total += d[j]
+            if d[j] <= limit[j]:
                 mask |= np.int64(1) << j
                 count += 1
-        a[kept, 0], a[kept, 1], a[kept, 2] = n0, n1, n2
-        a[kept, 3], a[kept, 4], a[kept, 5] = n3, n4, n5
+        out[kept, 0], out[kept, 1], out[kept, 2] = n0, n1, n2
+        out[kept, 3], out[kept, 4], out[kept, 5] = n3, n4, n5
         kept = _zonotope_row(h, masks, multi, kept, total, mask, count > r - 1)
+    return kept
+
+
+@_jit
+def _zonotope_facets(g, norms, subsets, others, rank_tol, incidence_tol):
+    n_sub = subsets.shape[0]
+    a, masks, multi = _row_buffers(n_sub, 6)
+    h = np.empty(n_sub)
+    kept = _facet_rows6(g, norms, subsets, others, rank_tol, incidence_tol, a, h, masks, multi)
     keep = _first_of_each(masks[:kept], multi[:kept])
     return a[keep], h[keep]
 
@@ -434,13 +449,31 @@ def _zonotope_rows(A1, h, c):
 
 
 @_jit
-def _lifted_zonotope(P, C, H, subsets, zero_tol, certify, rank_tol, incidence_tol):
+def _lifted_zonotope(P, C, H, subsets, others, zero_tol, certify, rank_tol, incidence_tol):
     G, c, norms = _lifted_generators(P, C, H)
     if _short_generator(norms, zero_tol) or not _full_rank(G @ G.T, certify):
         return np.empty((0, 6)), np.empty(0), c, False
-    a, h = _zonotope_facets(G, norms, subsets, rank_tol, incidence_tol)
-    A, b = _zonotope_rows(a, h, c)
-    return A, b, c, True
+    # The rows [a; -a] built in one buffer: the facets' normals first, compacted in place
+    # to the kept ones (keep[t] >= t), then their negatives (the reference's order).
+    n_sub = subsets.shape[0]
+    A, masks, multi = _row_buffers(2 * n_sub, 6)
+    h = np.empty(n_sub)
+    kept = _facet_rows6(G, norms, subsets, others, rank_tol, incidence_tol, A, h, masks, multi)
+    keep = _first_of_each(masks[:kept], multi[:kept])
+    k = keep.size
+    b = np.empty(2 * k)
+    for t in range(k):
+        s = keep[t]
+        ac = 0.0
+        for i in range(6):
+            A[t, i] = A[s, i]
+            ac += A[t, i] * c[i]
+        b[t] = ac + h[s]
+        b[k + t] = h[s] - ac
+    for t in range(k):
+        for i in range(6):
+            A[k + t, i] = -A[t, i]
+    return A[:2 * k], b, c, True
 
 
 @_jit(inline=True)
@@ -514,7 +547,8 @@ def _lifted_zonotope_pair(P, C, H, subsets, src, row, sign, size, zero_tol, cert
 
 def lifted_zonotope(positions: np.ndarray, centers: np.ndarray, generators: np.ndarray,
                     subsets: np.ndarray, zero_tol: float, certify: float, rank_tol: float,
-                    incidence_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+                    incidence_tol: float, *, others: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     r"""
     Return the AWP of K >= 3 parallelepiped legs, ``(A, b, c)``, in one compiled call.
 
@@ -527,13 +561,16 @@ def lifted_zonotope(positions: np.ndarray, centers: np.ndarray, generators: np.n
     certify``, from a Cholesky factor), :func:`zonotope_facets`, and the rows ``[a; -a]``,
     ``b = [a . c + h; h - a . c]`` in the reference's order.
 
+    :param others: :func:`subset_complements` of ``subsets`` (computed when None; the hot
+        caller passes a cached table).
     :return: ``(A, b, c)``, or None when a generator is shorter than ``zero_tol`` times the
         longest or the certificate fails (the caller takes the general code).
     """
+    S = np.ascontiguousarray(subsets, dtype=np.int64)
     A, b, c, ok = _lifted_zonotope(np.ascontiguousarray(positions, dtype=float),
                                    np.ascontiguousarray(centers, dtype=float),
-                                   np.ascontiguousarray(generators, dtype=float),
-                                   np.ascontiguousarray(subsets, dtype=np.int64),
+                                   np.ascontiguousarray(generators, dtype=float), S,
+                                   _complements(S, 3 * len(positions), others),
                                    float(zero_tol), float(certify), float(rank_tol),
                                    float(incidence_tol))
     return (A, b, c) if ok else None
@@ -711,7 +748,8 @@ def _first_of_each(masks, multi):
 
 
 def zonotope_facets(g: np.ndarray, norms: np.ndarray, subsets: np.ndarray, rank_tol: float,
-                    incidence_tol: float) -> tuple[np.ndarray, np.ndarray]:
+                    incidence_tol: float, *, others: np.ndarray | None = None
+                    ) -> tuple[np.ndarray, np.ndarray]:
     r"""
     Return the unit facet normals ``a`` (k, 6) and ``h(a) = sum_j |a . g_j|`` (k,).
 
@@ -721,12 +759,29 @@ def zonotope_facets(g: np.ndarray, norms: np.ndarray, subsets: np.ndarray, rank_
     is at most ``rank_tol``; one row per incidence set ``{j : |a . g_j| <= incidence_tol
     |g_j|}``, the first in subset order. The same rows, in the same order, as
     :func:`awp_ros.geometry.zonotope.zonotope`'s numpy code (both signs: ``a`` and ``-a``
-    are the caller's).
+    are the caller's). ``others``: :func:`subset_complements` of ``subsets`` (computed when
+    None).
     """
-    return _zonotope_facets(np.ascontiguousarray(g, dtype=float),
-                            np.ascontiguousarray(norms, dtype=float),
-                            np.ascontiguousarray(subsets, dtype=np.int64),
-                            float(rank_tol), float(incidence_tol))
+    g = np.ascontiguousarray(g, dtype=float)
+    S = np.ascontiguousarray(subsets, dtype=np.int64)
+    return _zonotope_facets(g, np.ascontiguousarray(norms, dtype=float), S,
+                            _complements(S, g.shape[1], others), float(rank_tol),
+                            float(incidence_tol))
+
+
+def subset_complements(subsets: np.ndarray, m: int) -> np.ndarray:
+    """Return, row by row, the increasing indices of ``range(m)`` not in ``subsets`` (n, k)."""
+    S = np.asarray(subsets, dtype=np.int64)
+    member = np.zeros((S.shape[0], m), dtype=bool)
+    member[np.arange(S.shape[0])[:, None], S] = True
+    return np.ascontiguousarray(np.nonzero(~member)[1].reshape(S.shape[0], m - S.shape[1]))
+
+
+def _complements(S: np.ndarray, m: int, others: np.ndarray | None) -> np.ndarray:
+    """Return ``others`` as the kernels take it, or :func:`subset_complements` of ``S``."""
+    if others is None:
+        return subset_complements(S, m)
+    return np.ascontiguousarray(others, dtype=np.int64)
 
 
 @_jit

@@ -87,8 +87,11 @@ def zonotope(center: np.ndarray, generators: np.ndarray, *, with_vertices: bool 
     # Eq. (1): a normal per valid subset (either sign), eq. (3): one per incidence set.
     subsets, tree = _combinations(G.shape[1], r - 1)
     if kernels.ENABLED and not with_vertices and 3 <= r <= 6 and G.shape[1] <= kernels.MAX_BITS:
-        facets = kernels.zonotope_facets if r == 6 else kernels.flat_zonotope_facets
-        a, h = facets(g, norms, subsets, rank_tol, incidence_tol)
+        if r == 6:
+            a, h = kernels.zonotope_facets(g, norms, subsets, rank_tol, incidence_tol,
+                                           others=facet_complements(G.shape[1], r - 1))
+        else:
+            a, h = kernels.flat_zonotope_facets(g, norms, subsets, rank_tol, incidence_tol)
     else:
         a, h, subsets = _facets(g, norms, subsets, tree, r, rank_tol, incidence_tol,
                                 with_vertices)
@@ -160,6 +163,14 @@ def _check(center: np.ndarray, generators: np.ndarray) -> tuple[np.ndarray, np.n
 def facet_subsets(m: int, k: int = 5) -> np.ndarray:
     """Return the lexicographic k-subsets of range(m) (read-only), eq. (1)'s candidates."""
     return _combinations(m, k)[0]
+
+
+@lru_cache(maxsize=64)
+def facet_complements(m: int, k: int = 5) -> np.ndarray:
+    """Return, for each of :func:`facet_subsets`, the other indices of range(m) (read-only)."""
+    others = kernels.subset_complements(facet_subsets(m, k), m)
+    others.setflags(write=False)
+    return others
 
 
 @lru_cache(maxsize=64)

@@ -27,7 +27,7 @@ from awp_ros.geometry import kernels
 from awp_ros.geometry.linalg import cross3, GRAM_CERTIFY, identity
 from awp_ros.geometry.lp import chebyshev_ball
 from awp_ros.geometry.polytope import Polytope
-from awp_ros.geometry.zonotope import facet_subsets, zonotope, ZONOTOPE_TOLS
+from awp_ros.geometry.zonotope import facet_complements, facet_subsets, zonotope, ZONOTOPE_TOLS
 
 __all__ = ['actuation_wrench_polytope', 'feasible_wrench_polytope', 'lift', 'lift_matrices',
            'lift_points']
@@ -101,7 +101,8 @@ def actuation_wrench_polytope(positions: np.ndarray, centers: np.ndarray,
         tol = {**ZONOTOPE_TOLS, **zonotope_tols}
         fused = kernels.lifted_zonotope(P, C, H, facet_subsets(3 * K), tol['zero_tol'],
                                         max(tol['span_tol'] ** 2, GRAM_CERTIFY),
-                                        tol['rank_tol'], tol['incidence_tol'])
+                                        tol['rank_tol'], tol['incidence_tol'],
+                                        others=facet_complements(3 * K))
         if fused is not None:       # full-dimensional (else the general code decides)
             A, b, c = fused
             return Polytope(6, np.zeros((0, 6)), A, b, c, identity(6),

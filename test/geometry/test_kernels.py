@@ -853,3 +853,11 @@ def test_inside_forces_equals_the_numpy_inside_force(seed):
     V = np.array([F.vertices for F in forces])
     by_vertex = (V @ rows.transpose(0, 2, 1) < -1e-6).all(axis=2).any(axis=1)
     assert by_vertex.any() and (both & ~by_vertex).any() and not both.all()   # all 3 drawn
+
+
+def test_subset_complements_are_the_other_indices():
+    subsets = _combinations(9, 5)[0]
+    others = kernels.subset_complements(subsets, 9)
+    assert others.shape == (subsets.shape[0], 4)
+    for row, rest in zip(subsets, others):
+        assert list(rest) == sorted(set(range(9)) - set(row.tolist()))
