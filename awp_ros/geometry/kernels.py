@@ -1289,16 +1289,31 @@ def _polar_hull(D, slack):
     m = D.shape[1]
     x, y = D[0], D[1]
     # Akl-Toussaint: the extreme points along 8 directions make an octagon (ccw); points
-    # strictly inside it are not hull vertices.
-    ext = np.empty(8, dtype=np.int64)
-    for k in range(8):
-        c, s = np.cos(0.25 * np.pi * k), np.sin(0.25 * np.pi * k)
-        best, arg = -np.inf, 0
-        for i in range(m):
-            v = c * x[i] + s * y[i]
-            if v > best:
-                best, arg = v, i
-        ext[k] = arg
+    # strictly inside it are not hull vertices. Directions k pi / 4: the largest and the
+    # smallest x, x + y, y and y - x, found in one pass (the first index on ties).
+    e0 = e1 = e2 = e3 = e4 = e5 = e6 = e7 = 0
+    h0 = h1 = h2 = h3 = -np.inf
+    l0 = l1 = l2 = l3 = np.inf
+    for i in range(m):
+        v0, v2 = x[i], y[i]
+        v1, v3 = v0 + v2, v2 - v0
+        if v0 > h0:
+            h0, e0 = v0, i
+        if v0 < l0:
+            l0, e4 = v0, i
+        if v1 > h1:
+            h1, e1 = v1, i
+        if v1 < l1:
+            l1, e5 = v1, i
+        if v2 > h2:
+            h2, e2 = v2, i
+        if v2 < l2:
+            l2, e6 = v2, i
+        if v3 > h3:
+            h3, e3 = v3, i
+        if v3 < l3:
+            l3, e7 = v3, i
+    ext = np.array((e0, e1, e2, e3, e4, e5, e6, e7))
     # The disc inscribed in the octagon about the origin (when inside it) is a cheaper
     # first test: dual points of far lines cluster about the origin.
     r2 = np.inf
