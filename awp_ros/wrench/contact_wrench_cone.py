@@ -35,6 +35,7 @@ from __future__ import annotations
 
 from functools import lru_cache
 from itertools import product
+import math
 import threading
 
 import numpy as np
@@ -171,7 +172,8 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
     N_ = np.asarray(normals, dtype=float).reshape(-1, 3) if np.size(normals) else \
         np.zeros((0, 3))
     K = P.shape[0]
-    if N_.shape[0] != K or not np.isfinite(P).all():
+    # (A finite sum: all finite, the usual case; else the exact test decides.)
+    if N_.shape[0] != K or not (math.isfinite(P.sum()) or np.isfinite(P).all()):
         msg = (f'contact_wrench_cone needs finite positions (K, 3) and normals (K, 3); '
                f'got {np.shape(positions)} and {np.shape(normals)}')
         raise InputError(msg)
@@ -185,7 +187,9 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
         msg = f'friction pyramid needs an integer number of sides >= 3; got {sides!r}'
         raise InputError(msg)
     sides = int(sides)
-    mu = np.where(np.abs(mu) <= frictionless_tol, 0.0, mu)
+    frictionless = tuple(abs(m) <= frictionless_tol for m in mu.tolist())
+    if any(frictionless):
+        mu = np.where(frictionless, 0.0, mu)
     origin = np.zeros(6)
     if K == 0:
         return Polytope(0, np.zeros((1, 6)), np.zeros((0, 6)), np.zeros(0), origin,
@@ -207,7 +211,7 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
     meta = {'kind': 'cone', 'rays': lifted}
     r = U.shape[1]
     rh = lifted if r == 6 else lifted @ U                               # (K N, r)
-    subsets, tree = _candidates(K, sides, r, tuple(bool(m == 0.0) for m in mu))
+    subsets, tree = _candidates(K, sides, r, frictionless)
     if kernels.ENABLED and r == 6 and rh.shape[0] <= kernels.MAX_BITS:
         A = _kernel_facets(rh, subsets, (K, sides, r, rays.tobytes()), side_tol, rank_tol)
     elif kernels.ENABLED and 3 <= r < 6 and rh.shape[0] <= kernels.MAX_BITS:

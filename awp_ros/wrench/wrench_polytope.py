@@ -163,10 +163,10 @@ def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 
         A2, b2 = _restrict(cwc, origin, U, hull_tol)
         if A1 is None or A2 is None:
             return Polytope.empty(n)
-    A = np.vstack([A1, A2])
-    b = np.concatenate([b1, b2])
-    source = np.concatenate([np.zeros(A1.shape[0], dtype=np.int8),
-                             np.ones(A2.shape[0], dtype=np.int8)])
+    A = np.concatenate((A1, A2))
+    b = np.concatenate((b1, b2))
+    source = np.ones(b.size, dtype=np.int8)
+    source[:A1.shape[0]] = 0
     meta = {'kind': 'intersection', 'source': source, 'degenerate': False}
     # A zonotope's centre is in its relative interior; the apex 0 of the CWC is in the CWC.
     center_test = same and awp.meta.get('kind') == 'zonotope'
