@@ -770,18 +770,22 @@ def zonotope_facets(g: np.ndarray, norms: np.ndarray, subsets: np.ndarray, rank_
 
 
 def subset_complements(subsets: np.ndarray, m: int) -> np.ndarray:
-    """Return, row by row, the increasing indices of ``range(m)`` not in ``subsets`` (n, k)."""
+    """
+    Return, row by row, the increasing indices of ``range(m)`` not in ``subsets`` (n, k).
+
+    As int8 (``m <= MAX_BITS``): the table is read every cycle, a small one stays in cache.
+    """
     S = np.asarray(subsets, dtype=np.int64)
     member = np.zeros((S.shape[0], m), dtype=bool)
     member[np.arange(S.shape[0])[:, None], S] = True
-    return np.ascontiguousarray(np.nonzero(~member)[1].reshape(S.shape[0], m - S.shape[1]))
+    return np.nonzero(~member)[1].reshape(S.shape[0], m - S.shape[1]).astype(np.int8)
 
 
 def _complements(S: np.ndarray, m: int, others: np.ndarray | None) -> np.ndarray:
     """Return ``others`` as the kernels take it, or :func:`subset_complements` of ``S``."""
     if others is None:
         return subset_complements(S, m)
-    return np.ascontiguousarray(others, dtype=np.int64)
+    return np.ascontiguousarray(others, dtype=np.int8)
 
 
 @_jit

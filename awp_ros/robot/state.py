@@ -212,18 +212,23 @@ def _number(value, name: str) -> float:
 
 
 def _vector(value, n: int, name: str) -> np.ndarray:
+    # Fast path: a tuple or list of n plain numbers with a finite sum (all finite).
+    if type(value) in (tuple, list) and len(value) == n \
+            and set(map(type, value)) <= _PLAIN_NUMBERS and math.isfinite(sum(value)):
+        return np.array(value, dtype=float)
     if isinstance(value, (str, bytes, Mapping)) or not hasattr(value, '__len__') \
             or len(value) != n:
         raise InputError(f'{name} must be a list of {n} numbers, got {value!r}')
-    if type(value) in (tuple, list) and set(map(type, value)) <= _PLAIN_NUMBERS \
-            and math.isfinite(sum(value)):
-        return np.array(value, dtype=float)
     return np.array([_number(x, f'{name}[{i}]') for i, x in enumerate(value)])
 
 
 def _stance(stance, feet: Sequence[str]) -> tuple[str, ...]:
     if stance is None:
         return tuple(feet)
+    if type(stance) in (tuple, list):         # fast path: known feet, each once
+        ordered = tuple(f for f in feet if f in stance)
+        if len(ordered) == len(stance):
+            return ordered
     if isinstance(stance, (str, bytes, Mapping)) or not hasattr(stance, '__iter__'):
         raise InputError(f'stance must be a list of foot names, got {stance!r}')
     stance = list(stance)
