@@ -999,6 +999,8 @@ def _cone_dd(R, side_tol, rank_tol, cap):
     X2 = np.empty((cap, r))
     Z2 = np.empty(cap, dtype=np.int64)
     s = np.empty(cap)
+    pos = np.empty(cap, dtype=np.int64)
+    neg = np.empty(cap, dtype=np.int64)
     W, prev, nrm = _scratch(6)
     sub = np.empty((1, r - 1), dtype=np.int64)
     done = np.int64(0)
@@ -1025,6 +1027,7 @@ def _cone_dd(R, side_tol, rank_tol, cap):
             continue
         bit = np.int64(1) << j
         m = 0
+        n_pos = n_neg = 0
         for i in range(n):
             s[i] = _dot(X[i], R, j)
             if s[i] <= side_tol:
@@ -1032,12 +1035,16 @@ def _cone_dd(R, side_tol, rank_tol, cap):
                     X2[m, t] = X[i, t]
                 Z2[m] = Z[i] | bit if s[i] >= -side_tol else Z[i]
                 m += 1
-        for p in range(n):
-            if s[p] <= side_tol:
-                continue
-            for q in range(n):
-                if s[q] >= -side_tol:
-                    continue
+            else:
+                pos[n_pos] = i
+                n_pos += 1
+            if not s[i] >= -side_tol:
+                neg[n_neg] = i
+                n_neg += 1
+        for ip in range(n_pos):                # the pairs across: (positive, negative)
+            p = pos[ip]
+            for iq in range(n_neg):
+                q = neg[iq]
                 common = Z[p] & Z[q]
                 if _popcount(common) < r - 2:
                     continue
