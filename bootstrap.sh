@@ -130,6 +130,10 @@ setup_env() {
     say 'compiling the numba kernels (cached on disk: later processes load them)'
     python -c 'from awp_ros.geometry.kernels import compile_all; compile_all()' \
       || fail 'kernels' 'compiling awp_ros.geometry.kernels failed'
+    # The evaluator passes some kernels read-only arrays (cached tables): a type of their
+    # own, compiled here by its start-up warm-up rather than in a node's first seconds.
+    python -c 'from awp_ros.evaluation.evaluator import warm_up; warm_up("hyq")' \
+      || fail 'kernels' 'the evaluator warm-up (compiling its kernel types) failed'
     done_step kernels
   fi
   export ROS_AUTOMATIC_DISCOVERY_RANGE="${ROS_AUTOMATIC_DISCOVERY_RANGE:-LOCALHOST}"
