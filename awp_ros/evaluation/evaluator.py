@@ -169,7 +169,9 @@ class FeasibilityEvaluator:
         if forces:
             rows = self._friction_rows(s.normals, s.mus)
             frictions = FrictionPolytopes(forces, rows)
-            for k in np.flatnonzero(~inside_force(forces, rows)).tolist():
+            proven = inside_force(forces, rows, stacked=None if force_rows is None else
+                                  (force_rows[2], force_rows[0], force_rows[1]))
+            for k in np.flatnonzero(~proven).tolist():
                 if frictions[k].is_empty:
                     warnings.append(f'leg {s.stance[k]!r} cannot push on the ground within '
                                     'its torque limits (empty friction-bounded polytope)')
@@ -203,7 +205,7 @@ class FeasibilityEvaluator:
         t7 = clock()
         support = _region(cwc, w, 'support region', warnings)
         if force_rows is not None:
-            feasible = feasible_region_of_rows(p, *force_rows,
+            feasible = feasible_region_of_rows(p, *force_rows[:2],
                                                self._friction_rows(s.normals, s.mus), w)
         else:
             feasible = feasible_region(p, forces, self._friction_rows(s.normals, s.mus),
@@ -359,8 +361,8 @@ class FeasibilityEvaluator:
 
         Also return ``(centers (K, 3), generators (K, 3, 3))`` of the AWP's zonotope when
         every leg is a parallelepiped or a singular leg's flat image, else None; and the
-        legs' stacked H-reps ``(A (K, 6, 3), b (K, 6))`` when every leg is a
-        full-dimensional parallelepiped (the feasible region's input), else None.
+        legs' stacked H-reps and vertices ``(A (K, 6, 3), b (K, 6), V (K, 8, 3))`` when every
+        leg is a full-dimensional parallelepiped (the feasible region's input), else None.
         """
         K = len(stance)
         out: list[Polytope | None] = [None] * K
@@ -381,7 +383,7 @@ class FeasibilityEvaluator:
                             'generators': gen[k]}
                     out[k] = Polytope(3, V[k], A[k], b[k], zero, eye, meta)
             if min(ratio) > self.singular_rtol:
-                stacked, rows = (center, gen), (A, b)
+                stacked, rows = (center, gen), (A, b, V)
         for k, foot in enumerate(stance):
             if out[k] is None:
                 out[k] = force_polytope(J[k], bias[k], self._tau_min[foot],

@@ -125,8 +125,9 @@ def friction_polytopes(forces: Sequence[Polytope], rows: np.ndarray, *, tol: flo
     return out
 
 
-def inside_force(forces: Sequence[Polytope], rows: np.ndarray, *,
-                 margin: float = 1e-6) -> np.ndarray:
+def inside_force(forces: Sequence[Polytope], rows: np.ndarray, *, margin: float = 1e-6,
+                 stacked: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+                 ) -> np.ndarray:
     r"""
     Return, per leg, whether a force of its force polytope is proven strictly in its pyramid.
 
@@ -148,9 +149,14 @@ def inside_force(forces: Sequence[Polytope], rows: np.ndarray, *,
     :param forces: K force polytopes in R^3 [N] with their vertices and H-reps.
     :param rows: (K, N + 1, 3) unit outward rows of each leg's pyramid (:func:`friction_rows`).
     :param margin: the distance [N] inside every pyramid plane the force must have.
+    :param stacked: the polytopes' vertices, rows and offsets stacked, ``(V (K, n_v, 3),
+        A (K, m, 3), b (K, m))``, when the caller has them (full-dimensional legs of one
+        shape: the kernels' input, not stacked again).
     :return: boolean array (K,).
     """
     K = len(forces)
+    if kernels.ENABLED and stacked is not None:
+        return kernels.inside_forces(*stacked, rows, margin)
     if kernels.ENABLED and K and all(F.dimension == 3 and F.vertices.shape
                                      == forces[0].vertices.shape and F.A.shape
                                      == forces[0].A.shape for F in forces):

@@ -849,6 +849,10 @@ def test_inside_forces_equals_the_numpy_inside_force(seed):
         fast = inside_force(legs, rows[chunk:chunk + 4])
         slow = _numpy(inside_force, legs, rows[chunk:chunk + 4])
         np.testing.assert_array_equal(fast, slow)
+        stacked = tuple(np.array([getattr(F, key) for F in legs]) for key in ('vertices', 'A',
+                                                                              'b'))
+        np.testing.assert_array_equal(inside_force(legs, rows[chunk:chunk + 4],
+                                                   stacked=stacked), slow)
     both = inside_force(forces, rows)
     V = np.array([F.vertices for F in forces])
     by_vertex = (V @ rows.transpose(0, 2, 1) < -1e-6).all(axis=2).any(axis=1)
