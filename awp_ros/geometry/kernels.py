@@ -1295,6 +1295,16 @@ def parallelepipeds(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray,
 _COLLINEAR = 1e-12  # relative cross product under which three points count as collinear
 
 
+@_jit(inline=True)
+def _extremes(v, i, high, at_high, low, at_low):
+    """Return the largest and smallest value so far with their first indices, ``v`` at ``i``."""
+    if v > high:
+        high, at_high = v, i
+    if v < low:
+        low, at_low = v, i
+    return high, at_high, low, at_low
+
+
 @_jit
 def _polar_hull(D, slack):
     m = D.shape[1]
@@ -1307,23 +1317,10 @@ def _polar_hull(D, slack):
     l0 = l1 = l2 = l3 = np.inf
     for i in range(m):
         v0, v2 = x[i], y[i]
-        v1, v3 = v0 + v2, v2 - v0
-        if v0 > h0:
-            h0, e0 = v0, i
-        if v0 < l0:
-            l0, e4 = v0, i
-        if v1 > h1:
-            h1, e1 = v1, i
-        if v1 < l1:
-            l1, e5 = v1, i
-        if v2 > h2:
-            h2, e2 = v2, i
-        if v2 < l2:
-            l2, e6 = v2, i
-        if v3 > h3:
-            h3, e3 = v3, i
-        if v3 < l3:
-            l3, e7 = v3, i
+        h0, e0, l0, e4 = _extremes(v0, i, h0, e0, l0, e4)
+        h1, e1, l1, e5 = _extremes(v0 + v2, i, h1, e1, l1, e5)
+        h2, e2, l2, e6 = _extremes(v2, i, h2, e2, l2, e6)
+        h3, e3, l3, e7 = _extremes(v2 - v0, i, h3, e3, l3, e7)
     ext = np.array((e0, e1, e2, e3, e4, e5, e6, e7))
     # The disc inscribed in the octagon about the origin (when inside it) is a cheaper
     # first test: dual points of far lines cluster about the origin.
