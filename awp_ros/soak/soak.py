@@ -146,6 +146,10 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     try:
         wait_until(lambda: probe.node.count_publishers(f'{ns}/awp_node/report') > 0, 60.0,
                    'awp_node to appear')
+        # Drive once the node spins (its first /diagnostics comes from a timer of its running
+        # executor), not when its publishers appear: it then still collects its start-up
+        # garbage, and a 2 kHz drive into a short queue lost joint states it cannot count.
+        wait_until(lambda: len(diag) > 0, 60.0, 'awp_node to spin (its first /diagnostics)')
         time.sleep(0.5)
         monitor = ProcessMonitor(proc.pid, sample_period_s)
         cmd = driver_command(rate_hz, duration_s, robot=robot, namespace=ns,
