@@ -63,11 +63,11 @@ from awp_ros.robot.state import resolve_state, RobotState
 from awp_ros.wrench.com_region import (com_region, ComRegion, feasible_region,
                                        feasible_region_of_rows)
 from awp_ros.wrench.contact_forces import measured_contact_forces
-from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone
+from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone_unchecked
 from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
 from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
 from awp_ros.wrench.friction_polytope import friction_rows, FrictionPolytopes, inside_force
-from awp_ros.wrench.wrench_polytope import actuation_wrench_polytope, feasible_wrench_polytope
+from awp_ros.wrench.wrench_polytope import awp_zonotope, feasible_wrench_polytope
 
 __all__ = ['compute_fws', 'FeasibilityEvaluator', 'STAGES', 'warm_up']
 
@@ -171,16 +171,16 @@ class FeasibilityEvaluator:
             frictions = FrictionPolytopes(forces, rows)
             proven = inside_force(forces, rows, stacked=None if force_rows is None else
                                   (force_rows[2], force_rows[0], force_rows[1]))
-            for k in np.flatnonzero(~proven).tolist():
+            for k in () if proven.all() else np.flatnonzero(~proven).tolist():
                 if frictions[k].is_empty:
                     warnings.append(f'leg {s.stance[k]!r} cannot push on the ground within '
                                     'its torque limits (empty friction-bounded polytope)')
         t4 = clock()
         if s.stance:
-            awp = actuation_wrench_polytope(p, *stacked) if stacked is not None else \
+            awp = awp_zonotope(p, *stacked) if stacked is not None else \
                 minkowski_sum_of_lifts(p, [F.vertices for F in forces])
             t5 = clock()
-            cwc = contact_wrench_cone(p, s.normals, s.mus, cfg.pyramid_sides)
+            cwc = contact_wrench_cone_unchecked(p, s.normals, s.mus, cfg.pyramid_sides)
             fwp = feasible_wrench_polytope(awp, cwc)
         else:
             awp = fwp = cwc = _origin_set()

@@ -52,8 +52,8 @@ from awp_ros.wrench.wrench_polytope import lift_points
 #: rays (K, N, 3) -> (K, N, 6)); :func:`awp_ros.wrench.wrench_polytope.lift_points`.
 lift_rays = lift_points
 
-__all__ = ['contact_wrench_cone', 'friction_pyramid', 'friction_pyramids', 'lift_rays',
-           'reset_reuse', 'reuse_counts']
+__all__ = ['contact_wrench_cone', 'contact_wrench_cone_unchecked', 'friction_pyramid',
+           'friction_pyramids', 'lift_rays', 'reset_reuse', 'reuse_counts']
 
 
 def friction_pyramid(normal: np.ndarray, mu: float, sides: int = 4, *,
@@ -186,10 +186,29 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
     if int(sides) != sides or sides < 3:
         msg = f'friction pyramid needs an integer number of sides >= 3; got {sides!r}'
         raise InputError(msg)
-    sides = int(sides)
-    frictionless = tuple(abs(m) <= frictionless_tol for m in mu.tolist())
-    if any(frictionless):
-        mu = np.where(frictionless, 0.0, mu)
+    return contact_wrench_cone_unchecked(P, N_, mu, int(sides), span_tol=span_tol,
+                                         rank_tol=rank_tol, side_tol=side_tol,
+                                         frictionless_tol=frictionless_tol)
+
+
+def contact_wrench_cone_unchecked(P: np.ndarray, N_: np.ndarray, mu: np.ndarray, sides: int,
+                                  *, span_tol: float = 1e-9, rank_tol: float = 1e-9,
+                                  side_tol: float = 1e-9,
+                                  frictionless_tol: float = 1e-9) -> Polytope:
+    """
+    Return :func:`contact_wrench_cone` of inputs it has checked already (eqs. (3-4)).
+
+    :param P: feet (K, 3) [m] and :param N_: normals (K, 3), finite float arrays;
+        :param mu: (K,) contiguous float array, each >= 0; :param sides: an int >= 3 (the
+        evaluator's own, per cycle). Tolerances as :func:`contact_wrench_cone`.
+    """
+    K = P.shape[0]
+    if K and float(mu.min()) > frictionless_tol:
+        frictionless = _WITH_FRICTION[K] if K < len(_WITH_FRICTION) else (False,) * K
+    else:
+        frictionless = tuple(abs(m) <= frictionless_tol for m in mu.tolist())
+        if any(frictionless):
+            mu = np.where(frictionless, 0.0, mu)
     origin = np.zeros(6)
     if K == 0:
         return Polytope(0, np.zeros((1, 6)), np.zeros((0, 6)), np.zeros(0), origin,
@@ -222,6 +241,9 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
         A = A @ U.T
     cone = Polytope(r, np.zeros((0, 6)), A, np.zeros(A.shape[0]), origin, U, meta)
     return cone if pair is None else cone.with_hyperplane(normal)
+
+
+_WITH_FRICTION = tuple((False,) * K for K in range(9))
 
 
 def _pair_basis(P: np.ndarray, lifted: np.ndarray,

@@ -30,7 +30,7 @@ from awp_ros.geometry.polytope import Polytope
 from awp_ros.geometry.zonotope import facet_complements, facet_subsets, zonotope, ZONOTOPE_TOLS
 
 __all__ = ['actuation_wrench_polytope', 'feasible_wrench_polytope', 'lift', 'lift_matrices',
-           'lift_points']
+           'lift_points', 'awp_zonotope']
 
 
 def lift(p: np.ndarray) -> np.ndarray:
@@ -94,11 +94,22 @@ def actuation_wrench_polytope(positions: np.ndarray, centers: np.ndarray,
     :raises InputError: on bad shapes or non-finite values.
     """
     P, C, H = _check_legs(positions, centers, generators)
+    return awp_zonotope(P, C, H, with_vertices=with_vertices, **zonotope_tols)
+
+
+def awp_zonotope(P: np.ndarray, C: np.ndarray, H: np.ndarray, *,
+                 with_vertices: bool = False, **zonotope_tols: float) -> Polytope:
+    """
+    Return :func:`actuation_wrench_polytope` of legs already checked (its eq. (2)).
+
+    :param P: feet (K, 3) [m]; :param C: centres (K, 3) [N]; :param H: generators (K, 3, 3)
+        [N]: finite float arrays of these shapes (the evaluator's own, per cycle).
+    """
     K = P.shape[0]
     if K == 0:
         return zonotope(np.zeros(6), np.zeros((6, 0)), with_vertices=with_vertices)
+    tol = {**ZONOTOPE_TOLS, **zonotope_tols} if zonotope_tols else ZONOTOPE_TOLS
     if kernels.ENABLED and 3 <= K <= kernels.MAX_BITS // 3 and not with_vertices:
-        tol = {**ZONOTOPE_TOLS, **zonotope_tols}
         fused = kernels.lifted_zonotope(P, C, H, facet_subsets(3 * K), tol['zero_tol'],
                                         max(tol['span_tol'] ** 2, GRAM_CERTIFY),
                                         tol['rank_tol'], tol['incidence_tol'],
@@ -108,7 +119,6 @@ def actuation_wrench_polytope(positions: np.ndarray, centers: np.ndarray,
             return Polytope(6, np.zeros((0, 6)), A, b, c, identity(6),
                             {'kind': 'zonotope', 'generators': 3 * K})
     if kernels.ENABLED and K == 2 and not with_vertices:      # a hyperplane of R^6
-        tol = {**ZONOTOPE_TOLS, **zonotope_tols}
         fused = kernels.lifted_zonotope_pair(P, C, H, facet_subsets(6, 4), tol['zero_tol'],
                                              max(tol['span_tol'] ** 2, GRAM_CERTIFY),
                                              tol['span_tol'], tol['rank_tol'],
