@@ -12,7 +12,8 @@ Polytope geometry, ROS-free: H/V-representations, exact Minkowski-sum facets, ma
 - :mod:`mesh`: triangle meshes and force slices of polytopes, for drawing.
 - :mod:`iterative_projection`: Bretl & Lall iterative projection (a baseline).
 - :mod:`kernels`: compiled (numba) kernels of the per-cycle sets, numpy code their reference.
+- :mod:`steps`: long computations as generators, run whole or a piece at a time.
 """
 
 __all__ = ['polytope', 'linalg', 'exterior', 'face_lattice', 'zonotope', 'minkowski_facets',
-           'margin', 'lp', 'mesh', 'iterative_projection', 'kernels']
+           'margin', 'lp', 'mesh', 'iterative_projection', 'kernels', 'steps']

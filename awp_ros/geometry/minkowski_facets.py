@@ -79,6 +79,7 @@ Large temporaries live in per-thread buffers reused across calls
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from functools import lru_cache
 from itertools import permutations
 from math import comb
@@ -89,8 +90,13 @@ from awp_ros.geometry import kernels
 from awp_ros.geometry.exterior import hodge_normal, wedge_all, wedge_rows, wedge_table
 from awp_ros.geometry.face_lattice import Faces
 from awp_ros.geometry.linalg import workspace
+from awp_ros.geometry.steps import run_steps
 
-__all__ = ['FLOAT32_SLACK', 'facet_normals']
+__all__ = ['FLOAT32_SLACK', 'facet_normal_steps', 'facet_normals', 'STEP_CHOICES']
+
+#: Face choices searched between two yields of :func:`facet_normal_steps` (about 0.2 ms),
+#: in whole leg tuples: four HyQ legs' (2, 1, 1, 1) tuples have ~18000 each (~0.4 ms).
+STEP_CHOICES = 8000
 
 # Bound on the float32 rounding of a check value (3), relative to ``bound``: each value is a
 # float32 dot product of q <= 20 pairs of rounded float64 inputs (Y . O_j, or K . suffix with
@@ -103,8 +109,21 @@ FLOAT32_SLACK = 2.5e-6
 def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
                   normal_tol: float, *, feet: np.ndarray | None = None,
                   basis: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """Return :func:`facet_normal_steps`'s normals and count, computed whole."""
+    return run_steps(facet_normal_steps(faces, M, r, cone_tol, normal_tol, feet=feet,
+                                        basis=basis))
+
+
+def facet_normal_steps(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
+                       normal_tol: float, *, feet: np.ndarray | None = None,
+                       basis: np.ndarray | None = None
+                       ) -> Generator[None, None, tuple[np.ndarray, int]]:
     """
     Return unit candidate normals (N, r) that pass the normal-cone tests, and the count.
+
+    A stepped computation (:mod:`awp_ros.geometry.steps`): it yields after the legs'
+    preparation and after each pattern, and within a sliced pattern after each run of leg
+    tuples of about :data:`STEP_CHOICES` face choices.
 
     The face choices are grouped by *pattern*, the face dimensions sorted in decreasing order
     (reordering the legs only flips the sign of ``a``, and both signs are tested); all leg
@@ -152,17 +171,41 @@ def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
                for d in {d for per_dim in lifted for d in per_dim}}
     normals, count = [], 0
     for dims, legs in patterns:
+        yield
         if sliced and tuple(dims) in kernels.SLICE_PATTERNS:
-            a, n = kernels.slice_facet_normals(feet, basis, padded, dims, np.array(legs),
-                                               cone_tol, normal_tol)
-        else:
-            sets = [_select(stacked[d], column) for d, column in zip(dims, zip(*legs))]
-            a, n = _pattern_normals(sets, dims, r, scale, cone_tol, normal_tol)
+            for j, run in enumerate(_runs(legs, dims, padded)):
+                if j:
+                    yield
+                a, n = kernels.slice_facet_normals(feet, basis, padded, dims, run, cone_tol,
+                                                   normal_tol)
+                normals.append(a)
+                count += n
+            continue
+        sets = [_select(stacked[d], column) for d, column in zip(dims, zip(*legs))]
+        a, n = _pattern_normals(sets, dims, r, scale, cone_tol, normal_tol)
         normals.append(a)
         count += n
     if not normals:
         return np.zeros((0, r)), 0
     return np.vstack(normals), count
+
+
+def _runs(legs: list[tuple], dims: tuple, padded: dict) -> list[np.ndarray]:
+    """
+    Return the leg tuples of a sliced pattern in consecutive runs of about STEP_CHOICES.
+
+    A tuple's choices are estimated as the product of its legs' class counts (a whole leg,
+    dimension 3, counts 1); a run ends once its estimate reaches :data:`STEP_CHOICES`.
+    """
+    counts = [np.ones(len(padded[1][3]), dtype=np.int64) if d == 3 else padded[d][3]
+              for d in dims]
+    runs, start, total = [], 0, 0
+    for i, tup in enumerate(legs):
+        total += int(np.prod([c[k] for c, k in zip(counts, tup)]))
+        if total >= STEP_CHOICES or i == len(legs) - 1:
+            runs.append(np.array(legs[start:i + 1]))
+            start, total = i + 1, 0
+    return runs
 
 
 def _padded_groups(faces: list[Faces], d: int) -> tuple[np.ndarray, ...]:

@@ -57,8 +57,10 @@ class InputDrain:
         self._subs = [sub for sub, _ in self._inputs] + [main[0]]
         self._context = context
         self.budget_s = budget_s
-        #: Called when the joint-state queue is empty, before waiting (None = nothing).
-        self.on_idle: Callable[[], None] | None = None
+        #: Called when the joint-state queue is empty, before waiting (None = nothing); when
+        #: it returns True (it did some work, more remains) the queue is looked at again
+        #: and it is called again instead of waiting.
+        self.on_idle: Callable[[], bool | None] | None = None
         self._wait_set = None
 
     def run(self) -> int:
@@ -79,8 +81,8 @@ class InputDrain:
             remaining = end - time.monotonic()
             if remaining <= 0.0 or not self._context.ok():
                 return count
-            if self.on_idle is not None:         # the queue is empty: about to wait
-                self.on_idle()
+            if self.on_idle is not None and self.on_idle():   # the queue is empty: idle work
+                continue
             if not self._wait(remaining):
                 return count
 

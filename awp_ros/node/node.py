@@ -95,7 +95,8 @@ from awp_ros.node.yield_gate import YieldGate
 from awp_ros.robot.parameters import PipelineParams
 from awp_ros.ros.cdr import JointStateBytes
 from awp_ros.ros.conversions import stamp_to_ns
-from awp_ros.ros.pipeline import loss_note, Pipeline, REFERENCE_HISTORY, unevaluated_report
+from awp_ros.ros.pipeline import (InlineFws, loss_note, Pipeline, REFERENCE_HISTORY,
+                                  unevaluated_report)
 from awp_ros.runtime import freeze_startup_objects, keep_freed_memory, limit_blas_threads
 
 __all__ = ['AwpNode', 'SUBSCRIBERS_PERIOD_S', 'main']
@@ -118,11 +119,12 @@ class AwpNode(Node):
     def __init__(self, node_name: str = 'awp_node', **kwargs) -> None:
         super().__init__(node_name, **kwargs)
         self.pipeline: Pipeline | None = None
-        # fws_lag_s > 0: the FWS in a worker process (started on first use).
-        self.fws_runner = FwsRunner(self._output_error)
         self.parameters = NodeParameters(
             self, self._apply_parameters,
             lambda: None if self.pipeline is None else self.pipeline.root_link)
+        # fws_lag_s > 0: the FWS in a worker process (started on first use), or in steps here.
+        self.fws_runner = FwsRunner(self._output_error) if self.parameters.value('fws_worker') \
+            else InlineFws()
         blas_threads = self.parameters.value('blas_threads')
         self._blas = limit_blas_threads(blas_threads)
         if self._blas is None and blas_threads > 0:
@@ -165,11 +167,13 @@ class AwpNode(Node):
             return
         c = self.pipeline.config
         inputs = [s.topic_name for s in self.subscriptions_]
+        where = 'in steps between joint states' if isinstance(self.fws_runner, InlineFws) \
+            else 'in a worker process'
         self.get_logger().info(
             f'robot {c.robot_name!r}, feet {list(c.feet)}; inputs {inputs}; outputs '
             f'{self.pub_report.topic_name} (every joint state), FWS '
             f'{"every cycle" if p.fws_rate_hz == 0 else f"{p.fws_rate_hz:g} Hz"}'
-            f'{f" in a worker process, {p.fws_lag_s:g} s behind" if p.fws_lag_s > 0 else ""}'
+            f'{f" {where}, {p.fws_lag_s:g} s behind" if p.fws_lag_s > 0 else ""}'
             ', markers '
             f'{"off" if p.marker_rate_hz == 0 else f"{p.marker_rate_hz:g} Hz"}')
 
@@ -274,8 +278,7 @@ class AwpNode(Node):
             self.resolve_service_name('~/evaluate'), self.get_name(), self.get_namespace(),
             self._output_error, self.get_logger().info,
             gate='' if self.query_gate is None else self.query_gate.path)
-        if self.query_gate is not None:
-            self.drain.on_idle = self.query_gate.resume
+        self.drain.on_idle = self._on_idle
         config = None if self.pipeline is None else self.pipeline.config
         self.evaluate_service.update(config, p, self.model_error)
         period = self.parameters.value('diagnostics_period_s')
@@ -360,6 +363,19 @@ class AwpNode(Node):
             if self.query_gate is not None:     # back to the executor: the node is idle
                 self.query_gate.resume()
 
+    def _on_idle(self) -> bool:
+        """
+        Use a moment without joint states; return whether FWS work remains.
+
+        A step of a lagged FWS computed here (the drain then looks at its queue again), else
+        ``~/evaluate`` may run.
+        """
+        if self.pipeline is not None and self.pipeline.step_fws(0.0):
+            return True
+        if self.query_gate is not None:
+            self.query_gate.resume()
+        return False
+
     def _handle_joint_state(self, data: bytes, info: dict) -> None:
         # A query being evaluated is stopped from here until the input queue is empty (the
         # drain's on_idle, or the return to the executor): one stop per busy stretch.
@@ -405,6 +421,7 @@ class AwpNode(Node):
         if cycle.fws_computed and cycle.result is not None:      # in the loop (fws_lag_s 0)
             tm = cycle.result.timings_ms
             self.diagnostics.fws_in_loop(sum(tm.get(k, 0.0) for k in FWS_TIMINGS))
+        self.pipeline.step_fws(0.0)      # a lagged FWS computed here: one step per joint state
 
     def _subscribed(self) -> frozenset:
         """

@@ -149,7 +149,8 @@ class PipelineParams:
         'forces it')
     fws_lag_s: float = _param(
         0.0, 'FWS off the joint-state loop [s]: an FWS due at stamp t is computed beside '
-        'the loop (the node: in a worker process) and enters the reports from the '
+        'the loop (the node: in a worker process, or in steps between joint states with '
+        'fws_worker false) and enters the reports from the '
         'first joint state stamped >= t + fws_lag_s, the same in the node and the '
         'replay; after a stance change, until its FWS arrives, fws_* are NaN and '
         'feasible (with two stance legs) is fwp_feasible; 0 = in the loop, in the cycle '
@@ -344,6 +345,10 @@ _NODE = {     # name: (default, description, read-only)
     'marker_worker': (True, 'build the markers in a worker process (off the joint-state loop; '
                       '~3 ms each); a marker due while two wait for the worker is skipped and '
                       'counted in /diagnostics; false = in the node', True),
+    'fws_worker': (True, 'with fws_lag_s > 0, compute the FWS in a worker process (beside the '
+                   'node, on another core); false = in the node, in steps of about 0.2 ms between '
+                   'joint states and in its idle time (no second process; the FWS costs the '
+                   "node's own core)", True),
     'evaluate_yield': (True, 'the ~/evaluate computation (a process at SCHED_IDLE) is '
                        'stopped while the node handles a joint state, so a query never '
                        'competes with the stream for the cores and caches (it waits while the '

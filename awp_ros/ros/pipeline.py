@@ -63,7 +63,7 @@ from std_msgs.msg import Header
 
 from awp_ros.errors import AwpError, ConfigError, InputError
 from awp_ros.estimation.motion import fill_motion, MotionEstimator
-from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator
+from awp_ros.evaluation.evaluator import compute_fws_steps, FeasibilityEvaluator
 from awp_ros.evaluation.result import FeasibilityResult, WrenchSetResult
 from awp_ros.geometry.linalg import identity, quaternion_matrix
 from awp_ros.robot.config import check_keys, load_config, RobotConfig
@@ -518,6 +518,23 @@ class Pipeline:
             released = (job_stamp, job_result, ref)
         return released
 
+    def step_fws(self, deadline: float) -> bool:
+        """
+        Advance the lagged FWS jobs computed here until ``deadline``; return if work remains.
+
+        Steps (:class:`InlineFws`) run oldest job first, at least one while work remains, until
+        ``time.perf_counter()`` reaches ``deadline`` [s]. Jobs of another runner (a worker
+        process) are skipped. A job not finished when released is finished then.
+        """
+        for *_, handle in self._fws_pending:
+            step = getattr(handle, 'step', None)
+            if step is None:
+                continue
+            while not step():
+                if time.perf_counter() >= deadline:
+                    return True
+        return False
+
     def _drop_pending_fws(self) -> None:
         """Forget the lagged FWS jobs not yet released (their answers are ignored)."""
         for *_, handle in self._fws_pending:
@@ -529,23 +546,44 @@ class Pipeline:
 
 
 class InlineFws:
-    """Run lagged FWS jobs in this process, each when its answer is first asked for."""
+    """
+    Run lagged FWS jobs in this process, in steps (:func:`compute_fws_steps`).
+
+    A job advances by :meth:`Handle.step` (the node: between joint states,
+    :meth:`Pipeline.step_fws`) and finishes when its answer is asked for: the answer is the
+    same whenever its steps ran.
+    """
 
     class Handle:
-        """A job computed on :meth:`result` (once)."""
+        """A job computed in steps, finished on :meth:`result`."""
 
         def __init__(self, job: tuple) -> None:
-            self._job, self._part = job, None
+            self._steps, self._part = compute_fws_steps(*job), None
+
+        def step(self) -> bool:
+            """Run the job's next piece (about 0.2 ms); return whether its answer is in."""
+            if self._part is None:
+                try:
+                    next(self._steps)
+                except StopIteration as stop:
+                    self._part = stop.value
+            return self._part is not None
 
         def result(self, timeout: float | None = None) -> tuple:
             """Return :func:`~awp_ros.evaluation.evaluator.compute_fws` of the job."""
-            if self._part is None:
-                self._part = compute_fws(*self._job)
+            while not self.step():
+                pass
             return self._part
 
     def submit(self, job: tuple) -> InlineFws.Handle:
-        """Return a handle computing ``compute_fws(*job)`` when asked."""
+        """Return a handle computing ``compute_fws(*job)`` in steps."""
         return InlineFws.Handle(job)
+
+    def start(self) -> None:
+        """Start nothing (the node's runner protocol, as ``fws_worker.FwsRunner``)."""
+
+    def close(self) -> None:
+        """Nothing to stop."""
 
 
 def _due(last_ns: int | None, ns: int, rate_hz: float) -> bool:

@@ -16,8 +16,8 @@ coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``r``, wh
 ``M_k = U^T L_k``):
 
 (2)-(3) the facet normals, by face combinations of the legs
-    (:func:`awp_ros.geometry.minkowski_facets.facet_normals`): each is a generalised cross product
-    of ``r - 1`` lifted face directions whose normal cones agree;
+    (:func:`awp_ros.geometry.minkowski_facets.facet_normal_steps`): each is a generalised
+    cross product of ``r - 1`` lifted face directions whose normal cones agree;
 (4) rows are deduplicated after rounding their normals (equal normals have equal offsets),
     then ``b = h_S(a)`` by (1) over all the given points, so each kept row is an exact
     supporting halfspace whatever the tolerances (and whatever the face search found).
@@ -31,6 +31,7 @@ the 12 directional margins exactly by warm-started LPs (about 1 ms for HyQ's 4 l
 
 from __future__ import annotations
 
+from collections.abc import Generator
 from typing import Sequence
 
 import numpy as np
@@ -39,12 +40,14 @@ from awp_ros.errors import InputError
 from awp_ros.geometry import kernels
 from awp_ros.geometry.face_lattice import Faces, polytope_faces
 from awp_ros.geometry.linalg import orthonormal_span
-from awp_ros.geometry.minkowski_facets import facet_normals, FLOAT32_SLACK
+from awp_ros.geometry.minkowski_facets import facet_normal_steps, FLOAT32_SLACK
 from awp_ros.geometry.polytope import Polytope
+from awp_ros.geometry.steps import run_steps
 from awp_ros.wrench.wrench_polytope import lift_matrices
 
 # lift_matrices and lp_directional_margins are re-exported from their modules.
-__all__ = ['feasible_wrench_set', 'lifted_hull', 'minkowski_sum_of_lifts']
+__all__ = ['feasible_wrench_set', 'feasible_wrench_set_steps', 'lifted_hull',
+           'minkowski_sum_of_lifts', 'minkowski_sum_steps']
 
 
 def feasible_wrench_set(positions: np.ndarray, friction_polytopes: Sequence[Polytope],
@@ -63,6 +66,20 @@ def feasible_wrench_set(positions: np.ndarray, friction_polytopes: Sequence[Poly
     :raises InputError: on mismatched lengths or bad shapes, or a non-empty polytope without
         vertices.
     """
+    vertex_sets, halfspaces = _leg_inputs(friction_polytopes)
+    return minkowski_sum_of_lifts(positions, vertex_sets, halfspaces=halfspaces, **tolerances)
+
+
+def feasible_wrench_set_steps(positions: np.ndarray, friction_polytopes: Sequence[Polytope],
+                              **tolerances: float) -> Generator[None, None, Polytope]:
+    """Compute :func:`feasible_wrench_set` in steps (:mod:`awp_ros.geometry.steps`)."""
+    vertex_sets, halfspaces = _leg_inputs(friction_polytopes)
+    return (yield from minkowski_sum_steps(positions, vertex_sets, halfspaces=halfspaces,
+                                           **tolerances))
+
+
+def _leg_inputs(friction_polytopes: Sequence[Polytope]) -> tuple[list, list]:
+    """Return the legs' vertex sets and H-reps (or None) for the sum, or raise InputError."""
     vertex_sets = []
     for k, Q in enumerate(friction_polytopes):
         V = np.asarray(Q.vertices, dtype=float).reshape(-1, Q.ambient_dim)
@@ -75,7 +92,7 @@ def feasible_wrench_set(positions: np.ndarray, friction_polytopes: Sequence[Poly
         vertex_sets.append(np.zeros((0, 3)) if Q.is_empty else V)
     halfspaces = [(Q.A, Q.b) if Q.dimension == 3 and Q.A.shape[0] else None
                   for Q in friction_polytopes]
-    return minkowski_sum_of_lifts(positions, vertex_sets, halfspaces=halfspaces, **tolerances)
+    return vertex_sets, halfspaces
 
 
 def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarray], *,
@@ -114,6 +131,22 @@ def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
     :raises InputError: on bad shapes, non-finite values or mismatched lengths, or
         ``cone_tol`` below float32 rounding.
     """
+    return run_steps(minkowski_sum_steps(
+        positions, vertex_sets, halfspaces=halfspaces, rank_tol=rank_tol, plane_tol=plane_tol,
+        cone_tol=cone_tol, normal_tol=normal_tol, dedupe_decimals=dedupe_decimals))
+
+
+def minkowski_sum_steps(positions: np.ndarray, vertex_sets: Sequence[np.ndarray], *,
+                        halfspaces: Sequence[tuple | None] | None = None,
+                        rank_tol: float = 1e-7, plane_tol: float = 1e-9,
+                        cone_tol: float = 1e-5, normal_tol: float = 1e-8,
+                        dedupe_decimals: int = 10) -> Generator[None, None, Polytope]:
+    """
+    Compute :func:`minkowski_sum_of_lifts` in steps (:mod:`awp_ros.geometry.steps`).
+
+    It yields after the legs' faces and within the facet search
+    (:func:`~awp_ros.geometry.minkowski_facets.facet_normal_steps`).
+    """
     if not cone_tol >= FLOAT32_SLACK:
         msg = f'cone_tol={cone_tol!r} must be >= {FLOAT32_SLACK} (float32 filter rounding)'
         raise InputError(msg)
@@ -132,12 +165,15 @@ def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
              for V, H in zip(vertex_sets, halfspaces)]
     if any(F.dimension < 0 for F in faces):
         return Polytope.empty(6)
+    yield
     L, origin, U, M = lifted_hull(P, faces, rank_tol=rank_tol)
     r = U.shape[1]
     if r == 0:
         return Polytope(0, origin[None, :], np.zeros((0, 6)), np.zeros(0), origin,
                         np.zeros((6, 0)), {'candidates': 0, 'kept': 0})
-    A_r, count = facet_normals(faces, M, r, cone_tol, normal_tol, feet=P, basis=U)
+    A_r, count = yield from facet_normal_steps(faces, M, r, cone_tol, normal_tol, feet=P,
+                                               basis=U)
+    yield
     # Support (4) over every input point, not only the extreme ones the face search kept;
     # a leg found flat within rank_tol is projected on its plane like its faces (consistent
     # flattening: mixing the two made an ill-conditioned H-rep overshoot S).

@@ -21,6 +21,7 @@ import time
 
 from awp_ros_msgs.msg import FeasibilityReport
 import numpy as np
+import pytest
 
 from awp_ros.soak.monitor import children, proc_usage, ProcessMonitor
 from awp_ros.soak.probe import Probe
@@ -157,17 +158,19 @@ def test_load_shedding_answers_every_joint_state(ros_env):
     assert r.latency_after_warmup_ms['p50'] * 1e-3 < 0.25 * unshed_s, r.latency_after_warmup_ms
 
 
-def test_the_fws_off_the_loop_comes_lagged_by_stamps_over_dds(ros_env):
-    # fws_lag_s: the node computes the FWS in its worker process; every report carries the
-    # FWS of a joint state at least fws_lag_s earlier in the same stance, or none (just
-    # after a stance change). feasible: with three or more legs this cycle's verdict (the
-    # CoM in the feasible region), else the latest FWS's, or the FWP's when there is none.
+@pytest.mark.parametrize('worker', [True, False])
+def test_the_fws_off_the_loop_comes_lagged_by_stamps_over_dds(ros_env, worker):
+    # fws_lag_s: the node computes the FWS in its worker process (fws_worker) or in steps
+    # between joint states; every report carries the FWS of a joint state at least
+    # fws_lag_s earlier in the same stance, or none (just after a stance change). feasible:
+    # with three or more legs this cycle's verdict (the CoM in the feasible region), else
+    # the latest FWS's, or the FWP's when there is none.
     lag_ns = 20_000_000
     probe = Probe(int(ros_env['ROS_DOMAIN_ID']), 'awp_soak_test_lag')
     reports = probe.subscribe(FeasibilityReport, '/soak/awp_node/report', depth=100000)
     try:
         r = run_soak(300.0, 4.0, env=ros_env, warmup_s=1.0, sample_period_s=0.25,
-                     params={'fws_lag_s': lag_ns * 1e-9})
+                     params={'fws_lag_s': lag_ns * 1e-9, 'fws_worker': worker})
     finally:
         probe.close()
     assert r.node_alive and r.missing == 0 and r.duplicates == 0

@@ -106,3 +106,42 @@ def test_on_idle_is_called_once_the_queue_is_empty_not_between_queued_joint_stat
     assert drain.run() == 50
     assert log[:50] == list(range(50)) and set(log[50:]) == {'idle'} and len(log) > 50
     drain.close()
+
+
+def test_idle_work_runs_in_pieces_between_joint_states_and_never_delays_one(peers):
+    # The node's FWS in steps (fws_worker false): on_idle returns True while work remains;
+    # the drain then looks at its queue before the next piece, and waits only once idle work
+    # is done. A joint state published during the pieces is taken after at most one piece.
+    pub_node, sub_node = peers
+    log = []
+    js_sub = sub_node.create_subscription(JointState, 'joint_states', lambda m: None, QOS)
+    js_pub = pub_node.create_publisher(JointState, 'joint_states', QOS)
+    assert _wait(lambda: js_pub.get_subscription_count())
+    pieces = [40]                    # pieces of idle work left; each takes 10 ms
+
+    def idle() -> bool:
+        if pieces[0] == 0:
+            log.append('nothing')
+            return False
+        if pieces[0] == 30:          # a joint state arrives while the idle work goes on
+            js_pub.publish(JointState())
+        time.sleep(0.01)
+        pieces[0] -= 1
+        log.append('piece')
+        return pieces[0] > 0
+
+    drain = InputDrain([], (js_sub, lambda m, info: log.append('js')), sub_node.context,
+                       budget_s=1.5)
+    drain.on_idle = idle
+    js_pub.publish(JointState())
+    time.sleep(1.0)                  # delivered
+    t0 = time.monotonic()
+    assert drain.run() == 2
+    assert time.monotonic() - t0 > 1.5
+    assert log.count('piece') == 40 and log.count('js') == 2, log
+    # The second joint state came in between pieces, a piece or two after it was published.
+    second = [i for i, e in enumerate(log) if e == 'js'][1]
+    assert 10 <= log[:second].count('piece') <= 13, log
+    # Once the work was done (the last piece said so), the drain waited out its budget.
+    assert log[-1] == 'piece' and 'nothing' not in log
+    drain.close()

@@ -20,7 +20,8 @@ from scipy.spatial import ConvexHull, HalfspaceIntersection
 from awp_ros.errors import InputError
 from awp_ros.geometry.margin import directional_margins, polytope_margin
 from awp_ros.geometry.polytope import Polytope
-from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set, minkowski_sum_of_lifts
+from awp_ros.wrench.feasible_wrench_set import (feasible_wrench_set, minkowski_sum_of_lifts,
+                                                minkowski_sum_steps)
 from awp_ros.wrench.wrench_polytope import lift_matrices
 from cases import hyq_feet, hyq_like_leg, vertex_sums
 
@@ -282,6 +283,32 @@ def test_four_legs_rows_support_and_random_supports_agree(four_legs):
         a /= np.linalg.norm(a)
         h = sum(np.max(V @ (Lk.T @ a)) for Lk, V in zip(L, vertex_sets))
         assert hrep_support(S, a) == pytest.approx(h, rel=1e-9, abs=1e-6)
+
+
+def test_the_sum_in_steps_interleaved_with_another_is_the_sum_in_one_piece(four_legs):
+    """Steps (the node's FWS between joint states) change nothing, even when two alternate."""
+    p, vertex_sets, S = four_legs
+    rng = np.random.default_rng(7)
+    q = hyq_feet(rng, 4)
+    other_sets = [hyq_like_leg(rng) for _ in range(4)]
+    T = minkowski_sum_of_lifts(q, other_sets)
+    first = minkowski_sum_steps(p, vertex_sets)
+    second = minkowski_sum_steps(q, other_sets)
+    answers, steps = {}, 0
+    while len(answers) < 2:                  # alternate: each step of one, then of the other
+        for name, g in (('first', first), ('second', second)):
+            if name in answers:
+                continue
+            try:
+                next(g)
+                steps += 1
+            except StopIteration as stop:
+                answers[name] = stop.value
+    assert steps >= 10                       # four legs: the facet search in several pieces
+    for got, want in ((answers['first'], S), (answers['second'], T)):
+        assert np.array_equal(got.A, want.A) and np.array_equal(got.b, want.b)
+    check_rows_support(answers['second'], q, other_sets)
+    check_hrep_vertices_are_sums(answers['second'], q, other_sets)
 
 
 def test_checkers_detect_a_missing_facet(four_legs):
