@@ -38,6 +38,15 @@ def _wait(predicate, timeout=20.0):
     return predicate()
 
 
+def _joint_states(peers):
+    """Return a joint-state subscription of the second node and a publisher of the first."""
+    pub_node, sub_node = peers
+    js_sub = sub_node.create_subscription(JointState, 'joint_states', lambda m: None, QOS)
+    js_pub = pub_node.create_publisher(JointState, 'joint_states', QOS)
+    assert _wait(lambda: js_pub.get_subscription_count())
+    return js_sub, js_pub
+
+
 def test_drain_takes_contacts_before_each_joint_state_and_respects_its_budget(peers):
     pub_node, sub_node = peers
     log = []
@@ -90,11 +99,9 @@ def test_drain_takes_contacts_before_each_joint_state_and_respects_its_budget(pe
 def test_on_idle_is_called_once_the_queue_is_empty_not_between_queued_joint_states(peers):
     # What the node uses to continue a stopped query computation (yield_gate): once per
     # stretch of queued joint states, when the queue is empty and the drain is about to wait.
-    pub_node, sub_node = peers
+    sub_node = peers[1]
     log = []
-    js_sub = sub_node.create_subscription(JointState, 'joint_states', lambda m: None, QOS)
-    js_pub = pub_node.create_publisher(JointState, 'joint_states', QOS)
-    assert _wait(lambda: js_pub.get_subscription_count())
+    js_sub, js_pub = _joint_states(peers)
     for i in range(50):
         msg = JointState()
         msg.header.stamp.nanosec = i
@@ -112,11 +119,9 @@ def test_idle_work_runs_in_pieces_between_joint_states_and_never_delays_one(peer
     # The node's FWS in steps (fws_worker false): on_idle returns True while work remains;
     # the drain then looks at its queue before the next piece, and waits only once idle work
     # is done. A joint state published during the pieces is taken after at most one piece.
-    pub_node, sub_node = peers
+    sub_node = peers[1]
     log = []
-    js_sub = sub_node.create_subscription(JointState, 'joint_states', lambda m: None, QOS)
-    js_pub = pub_node.create_publisher(JointState, 'joint_states', QOS)
-    assert _wait(lambda: js_pub.get_subscription_count())
+    js_sub, js_pub = _joint_states(peers)
     pieces = [40]                    # pieces of idle work left; each takes 10 ms
 
     def idle() -> bool:
