@@ -62,7 +62,7 @@ import os
 import numpy as np
 
 from awp_ros.geometry.exterior import wedge_table
-from awp_ros.geometry.linalg import GRAM_CERTIFY, workspace
+from awp_ros.geometry.linalg import cross3, GRAM_CERTIFY, workspace
 
 try:  # numba is a dependency; without it (or AWP_ROS_KERNELS=numpy) the numpy code runs
     import numba
@@ -75,6 +75,7 @@ __all__ = [
     'first_of_equal_rows', 'flat_cone_facets', 'feasible_region', 'flat_zonotope_facets',
     'leg_vertices', 'lifted_rays', 'lifted_zonotope', 'parallelepipeds', 'polar_hull',
     'polygon_region', 'projected_polygon', 'ratio_test', 'solid_faces', 'slice_facet_normals',
+    'slice_facet_normal_parts',
     'sparse_wedge_table', 'survivor_normals', 'wedge_tables', 'wrench_slice',
     'zonotope_facets']
 
@@ -2750,6 +2751,20 @@ SLICE_PATTERNS = ((2, 1, 1, 1), (2, 2, 1), (3, 1, 1), (3, 2))
 def slice_facet_normals(positions: np.ndarray, U: np.ndarray, groups: dict, dims: tuple,
                         legs: np.ndarray, cone_tol: float,
                         normal_tol: float) -> tuple[np.ndarray, int]:
+    """
+    Return :func:`slice_facet_normal_parts`'s rows stacked (+ then -) and the choices.
+
+    Over consecutive runs of ``legs``, stacking every run's + rows, then every run's - rows,
+    gives the same array as one call (the facet search in steps).
+    """
+    plus, minus, choices = slice_facet_normal_parts(positions, U, groups, dims, legs,
+                                                    cone_tol, normal_tol)
+    return np.vstack([plus, minus]), choices
+
+
+def slice_facet_normal_parts(positions: np.ndarray, U: np.ndarray, groups: dict, dims: tuple,
+                             legs: np.ndarray, cone_tol: float, normal_tol: float
+                             ) -> tuple[np.ndarray, np.ndarray, int]:
     r"""
     Return the unit normals (hull coordinates) of one pattern's face choices that pass (3).
 
@@ -2768,8 +2783,9 @@ def slice_facet_normals(positions: np.ndarray, U: np.ndarray, groups: dict, dims
         counts (K,))``, every leg's face classes of dimension ``d`` padded (counts 0: none).
     :param dims: the pattern, one of :data:`SLICE_PATTERNS`.
     :param legs: (T, len(dims)) leg tuples of the pattern.
-    :return: ``(normals (N, 6), choices examined)``, the rows passing with the + sign then
-        those passing with the - sign (negated), each in search order.
+    :return: ``(plus (N+, 6), minus (N-, 6), choices examined)``: the rows passing with the
+        + sign and those passing with the - sign (negated), each in search order
+        (:func:`slice_facet_normals` stacks them).
     """
     dims = tuple(dims)
     positions = np.ascontiguousarray(positions, dtype=float)
@@ -2785,12 +2801,12 @@ def slice_facet_normals(positions: np.ndarray, U: np.ndarray, groups: dict, dims
                                                      U, float(cone_tol), float(normal_tol),
                                                      out_pos, out_neg)
             if npos >= 0:
-                return np.vstack([out_pos[:npos], out_neg[:nneg]]), int(choices)
+                return out_pos[:npos].copy(), out_neg[:nneg].copy(), int(choices)
             cap *= 4
     whole = dims[0] == 3
     A = groups[dims[0]]
     An = np.zeros(A[0].shape[:2] + (3,)) if whole else \
-        np.ascontiguousarray(np.cross(A[0][:, :, 0], A[0][:, :, 1]))
+        np.ascontiguousarray(cross3(A[0][:, :, 0], A[0][:, :, 1]))
     B, C, D = groups[dims[1]], groups[dims[2]], groups[dims[-1]]
     pair = len(dims) == 3
     cap = 4096
@@ -2802,7 +2818,7 @@ def slice_facet_normals(positions: np.ndarray, U: np.ndarray, groups: dict, dims
             C[0], C[1], C[2], C[3], D[0], D[1], D[2], D[3], legs, U, float(cone_tol),
             float(normal_tol), out_pos, out_neg)
         if npos >= 0:
-            return np.vstack([out_pos[:npos], out_neg[:nneg]]), int(choices)
+            return out_pos[:npos].copy(), out_neg[:nneg].copy(), int(choices)
         cap *= 4
 
 

@@ -82,7 +82,7 @@ from __future__ import annotations
 from collections.abc import Generator
 from functools import lru_cache
 from itertools import permutations
-from math import comb
+from math import comb, prod
 
 import numpy as np
 
@@ -109,21 +109,22 @@ FLOAT32_SLACK = 2.5e-6
 def facet_normals(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
                   normal_tol: float, *, feet: np.ndarray | None = None,
                   basis: np.ndarray | None = None) -> tuple[np.ndarray, int]:
-    """Return :func:`facet_normal_steps`'s normals and count, computed whole."""
+    """Return :func:`facet_normal_steps`'s normals and count, the search in one piece."""
     return run_steps(facet_normal_steps(faces, M, r, cone_tol, normal_tol, feet=feet,
-                                        basis=basis))
+                                        basis=basis, step_choices=None))
 
 
 def facet_normal_steps(faces: list[Faces], M: np.ndarray, r: int, cone_tol: float,
                        normal_tol: float, *, feet: np.ndarray | None = None,
-                       basis: np.ndarray | None = None
+                       basis: np.ndarray | None = None, step_choices: int | None = STEP_CHOICES
                        ) -> Generator[None, None, tuple[np.ndarray, int]]:
     """
     Return unit candidate normals (N, r) that pass the normal-cone tests, and the count.
 
     A stepped computation (:mod:`awp_ros.geometry.steps`): it yields after the legs'
     preparation and after each pattern, and within a sliced pattern after each run of leg
-    tuples of about :data:`STEP_CHOICES` face choices.
+    tuples of about ``step_choices`` face choices (None: each pattern in one piece). The
+    rows are the same whatever ``step_choices``.
 
     The face choices are grouped by *pattern*, the face dimensions sorted in decreasing order
     (reordering the legs only flips the sign of ``a``, and both signs are tested); all leg
@@ -173,13 +174,16 @@ def facet_normal_steps(faces: list[Faces], M: np.ndarray, r: int, cone_tol: floa
     for dims, legs in patterns:
         yield
         if sliced and tuple(dims) in kernels.SLICE_PATTERNS:
-            for j, run in enumerate(_runs(legs, dims, padded)):
+            plus, minus = [], []
+            for j, run in enumerate(_runs(legs, dims, padded, step_choices)):
                 if j:
                     yield
-                a, n = kernels.slice_facet_normals(feet, basis, padded, dims, run, cone_tol,
-                                                   normal_tol)
-                normals.append(a)
+                p, m, n = kernels.slice_facet_normal_parts(feet, basis, padded, dims, run,
+                                                           cone_tol, normal_tol)
+                plus.append(p)
+                minus.append(m)
                 count += n
+            normals.append(np.vstack(plus + minus))       # the order of one piece
             continue
         sets = [_select(stacked[d], column) for d, column in zip(dims, zip(*legs))]
         a, n = _pattern_normals(sets, dims, r, scale, cone_tol, normal_tol)
@@ -190,19 +194,22 @@ def facet_normal_steps(faces: list[Faces], M: np.ndarray, r: int, cone_tol: floa
     return np.vstack(normals), count
 
 
-def _runs(legs: list[tuple], dims: tuple, padded: dict) -> list[np.ndarray]:
+def _runs(legs: list[tuple], dims: tuple, padded: dict,
+          step_choices: int | None) -> list[np.ndarray]:
     """
-    Return the leg tuples of a sliced pattern in consecutive runs of about STEP_CHOICES.
+    Return the leg tuples of a sliced pattern in consecutive runs of about ``step_choices``.
 
     A tuple's choices are estimated as the product of its legs' class counts (a whole leg,
-    dimension 3, counts 1); a run ends once its estimate reaches :data:`STEP_CHOICES`.
+    dimension 3, counts 1); a run ends once its estimate reaches ``step_choices`` (None: one
+    run).
     """
-    counts = [np.ones(len(padded[1][3]), dtype=np.int64) if d == 3 else padded[d][3]
-              for d in dims]
+    if step_choices is None:
+        return [np.array(legs)]
+    counts = [[1] * len(padded[1][3]) if d == 3 else padded[d][3].tolist() for d in dims]
     runs, start, total = [], 0, 0
     for i, tup in enumerate(legs):
-        total += int(np.prod([c[k] for c, k in zip(counts, tup)]))
-        if total >= STEP_CHOICES or i == len(legs) - 1:
+        total += prod(c[k] for c, k in zip(counts, tup))
+        if total >= step_choices or i == len(legs) - 1:
             runs.append(np.array(legs[start:i + 1]))
             start, total = i + 1, 0
     return runs

@@ -40,7 +40,7 @@ from awp_ros.errors import InputError
 from awp_ros.geometry import kernels
 from awp_ros.geometry.face_lattice import Faces, polytope_faces
 from awp_ros.geometry.linalg import orthonormal_span
-from awp_ros.geometry.minkowski_facets import facet_normal_steps, FLOAT32_SLACK
+from awp_ros.geometry.minkowski_facets import facet_normal_steps, FLOAT32_SLACK, STEP_CHOICES
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.geometry.steps import run_steps
 from awp_ros.wrench.wrench_polytope import lift_matrices
@@ -71,11 +71,12 @@ def feasible_wrench_set(positions: np.ndarray, friction_polytopes: Sequence[Poly
 
 
 def feasible_wrench_set_steps(positions: np.ndarray, friction_polytopes: Sequence[Polytope],
+                              *, step_choices: int | None = STEP_CHOICES,
                               **tolerances: float) -> Generator[None, None, Polytope]:
-    """Compute :func:`feasible_wrench_set` in steps (:mod:`awp_ros.geometry.steps`)."""
+    """Compute :func:`feasible_wrench_set` in steps (:func:`minkowski_sum_steps`)."""
     vertex_sets, halfspaces = _leg_inputs(friction_polytopes)
     return (yield from minkowski_sum_steps(positions, vertex_sets, halfspaces=halfspaces,
-                                           **tolerances))
+                                           step_choices=step_choices, **tolerances))
 
 
 def _leg_inputs(friction_polytopes: Sequence[Polytope]) -> tuple[list, list]:
@@ -133,19 +134,22 @@ def minkowski_sum_of_lifts(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
     """
     return run_steps(minkowski_sum_steps(
         positions, vertex_sets, halfspaces=halfspaces, rank_tol=rank_tol, plane_tol=plane_tol,
-        cone_tol=cone_tol, normal_tol=normal_tol, dedupe_decimals=dedupe_decimals))
+        cone_tol=cone_tol, normal_tol=normal_tol, dedupe_decimals=dedupe_decimals,
+        step_choices=None))
 
 
 def minkowski_sum_steps(positions: np.ndarray, vertex_sets: Sequence[np.ndarray], *,
                         halfspaces: Sequence[tuple | None] | None = None,
                         rank_tol: float = 1e-7, plane_tol: float = 1e-9,
                         cone_tol: float = 1e-5, normal_tol: float = 1e-8,
-                        dedupe_decimals: int = 10) -> Generator[None, None, Polytope]:
+                        dedupe_decimals: int = 10, step_choices: int | None = STEP_CHOICES
+                        ) -> Generator[None, None, Polytope]:
     """
     Compute :func:`minkowski_sum_of_lifts` in steps (:mod:`awp_ros.geometry.steps`).
 
-    It yields after the legs' faces and within the facet search
-    (:func:`~awp_ros.geometry.minkowski_facets.facet_normal_steps`).
+    It yields after the legs' faces and within the facet search, ``step_choices`` face
+    choices at a time (:func:`~awp_ros.geometry.minkowski_facets.facet_normal_steps`; None:
+    each pattern in one piece). The result is the same whatever the steps.
     """
     if not cone_tol >= FLOAT32_SLACK:
         msg = f'cone_tol={cone_tol!r} must be >= {FLOAT32_SLACK} (float32 filter rounding)'
@@ -172,7 +176,7 @@ def minkowski_sum_steps(positions: np.ndarray, vertex_sets: Sequence[np.ndarray]
         return Polytope(0, origin[None, :], np.zeros((0, 6)), np.zeros(0), origin,
                         np.zeros((6, 0)), {'candidates': 0, 'kept': 0})
     A_r, count = yield from facet_normal_steps(faces, M, r, cone_tol, normal_tol, feet=P,
-                                               basis=U)
+                                               basis=U, step_choices=step_choices)
     yield
     # Support (4) over every input point, not only the extreme ones the face search kept;
     # a leg found flat within rank_tol is projected on its plane like its faces (consistent
