@@ -40,7 +40,9 @@ class Probe:
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=int(domain_id))
+        # args=[]: not sys.argv, whose NAME:=VALUE words (the soak's --param) rcl would take
+        # for remap rules of this node.
+        rclpy.init(args=[], context=self.context, domain_id=int(domain_id))
         self.node = rclpy.create_node(name, context=self.context)
         self.lock = threading.Lock()
         self.executor = SingleThreadedExecutor(context=self.context)
