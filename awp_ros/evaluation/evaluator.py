@@ -171,8 +171,7 @@ class FeasibilityEvaluator:
         if forces:
             rows = self._friction_rows(s.normals, s.mus)
             frictions = FrictionPolytopes(forces, rows)
-            proven = inside_force(forces, rows, stacked=None if force_rows is None else
-                                  (force_rows[2], force_rows[0], force_rows[1]))
+            proven = inside_force(forces, rows, stacked=force_rows)
             for k in () if proven.all() else np.flatnonzero(~proven).tolist():
                 if frictions[k].is_empty:
                     warnings.append(f'leg {s.stance[k]!r} cannot push on the ground within '

@@ -365,12 +365,12 @@ class AwpNode(Node):
 
     def _on_idle(self) -> bool:
         """
-        Use a moment without joint states; return whether FWS work remains.
+        Use a moment without joint states; return whether it ran an FWS step.
 
         A step of a lagged FWS computed here (the drain then looks at its queue again), else
         ``~/evaluate`` may run.
         """
-        if self.pipeline is not None and self.pipeline.step_fws(0.0):
+        if self.pipeline is not None and self.pipeline.step_fws():
             return True
         if self.query_gate is not None:
             self.query_gate.resume()
@@ -421,7 +421,7 @@ class AwpNode(Node):
         if cycle.fws_computed and cycle.result is not None:      # in the loop (fws_lag_s 0)
             tm = cycle.result.timings_ms
             self.diagnostics.fws_in_loop(sum(tm.get(k, 0.0) for k in FWS_TIMINGS))
-        self.pipeline.step_fws(0.0)      # a lagged FWS computed here: one step per joint state
+        self.pipeline.step_fws()         # a lagged FWS computed here: one step per joint state
 
     def _subscribed(self) -> frozenset:
         """

@@ -204,7 +204,7 @@ def contact_wrench_cone_unchecked(P: np.ndarray, N_: np.ndarray, mu: np.ndarray,
     """
     K = P.shape[0]
     if K and float(mu.min()) > frictionless_tol:
-        frictionless = _WITH_FRICTION[K] if K < len(_WITH_FRICTION) else (False,) * K
+        frictionless = (False,) * K
     else:
         frictionless = tuple(abs(m) <= frictionless_tol for m in mu.tolist())
         if any(frictionless):
@@ -241,9 +241,6 @@ def contact_wrench_cone_unchecked(P: np.ndarray, N_: np.ndarray, mu: np.ndarray,
         A = A @ U.T
     cone = Polytope(r, np.zeros((0, 6)), A, np.zeros(A.shape[0]), origin, U, meta)
     return cone if pair is None else cone.with_hyperplane(normal)
-
-
-_WITH_FRICTION = tuple((False,) * K for K in range(9))
 
 
 def _pair_basis(P: np.ndarray, lifted: np.ndarray,

@@ -149,14 +149,15 @@ def inside_force(forces: Sequence[Polytope], rows: np.ndarray, *, margin: float 
     :param forces: K force polytopes in R^3 [N] with their vertices and H-reps.
     :param rows: (K, N + 1, 3) unit outward rows of each leg's pyramid (:func:`friction_rows`).
     :param margin: the distance [N] inside every pyramid plane the force must have.
-    :param stacked: the polytopes' vertices, rows and offsets stacked, ``(V (K, n_v, 3),
-        A (K, m, 3), b (K, m))``, when the caller has them (full-dimensional legs of one
-        shape: the kernels' input, not stacked again).
+    :param stacked: the polytopes' rows, offsets and vertices stacked, ``(A (K, m, 3),
+        b (K, m), V (K, n_v, 3))``, when the caller has them (full-dimensional legs of one
+        shape: the kernels' input, not stacked again; the evaluator's ``force_rows``).
     :return: boolean array (K,).
     """
     K = len(forces)
     if kernels.ENABLED and stacked is not None:
-        return kernels.inside_forces(*stacked, rows, margin)
+        A, b, V = stacked
+        return kernels.inside_forces(V, A, b, rows, margin)
     if kernels.ENABLED and K and all(F.dimension == 3 and F.vertices.shape
                                      == forces[0].vertices.shape and F.A.shape
                                      == forces[0].A.shape for F in forces):

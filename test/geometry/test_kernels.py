@@ -849,8 +849,8 @@ def test_inside_forces_equals_the_numpy_inside_force(seed):
         fast = inside_force(legs, rows[chunk:chunk + 4])
         slow = _numpy(inside_force, legs, rows[chunk:chunk + 4])
         np.testing.assert_array_equal(fast, slow)
-        stacked = tuple(np.array([getattr(F, key) for F in legs]) for key in ('vertices', 'A',
-                                                                              'b'))
+        stacked = tuple(np.array([getattr(F, key) for F in legs]) for key in ('A', 'b',
+                                                                              'vertices'))
         np.testing.assert_array_equal(inside_force(legs, rows[chunk:chunk + 4],
                                                    stacked=stacked), slow)
     both = inside_force(forces, rows)

@@ -64,7 +64,7 @@ def _run(msgs, lag_s: float, runner=None, *, kill_after: int | None = None,
         reports.append(cycle.report)
         fws.append(cycle.fws())
         for _ in range(steps):
-            pipeline.step_fws(0.0)
+            pipeline.step_fws()
     return reports, fws
 
 
