@@ -1,4 +1,4 @@
-"""Code style: ament_flake8 (ROS 2's flake8 linter) on the package, its tests and setup.py."""
+"""Code style: ament_flake8 (ROS 2's flake8 linter) on the package, tests, examples, setup.py."""
 
 from pathlib import Path
 
@@ -16,6 +16,7 @@ def test_flake8(monkeypatch):
     monkeypatch.chdir(REPO)
     rc, errors = main_with_errors(argv=[
         '--config', str(REPO / 'setup.cfg'),
-        str(REPO / 'awp_ros'), str(REPO / 'test'), str(REPO / 'setup.py'),
+        str(REPO / 'awp_ros'), str(REPO / 'test'), str(REPO / 'examples'),
+        str(REPO / 'setup.py'),
     ])
     assert rc == 0, 'Found %d code style errors / warnings:\n' % len(errors) + '\n'.join(errors)

@@ -53,12 +53,13 @@ than ``r - 1``, when the lifted direction spaces of two legs meet. A force along
 through feet ``i`` and ``j`` is the same wrench from either foot, so ``L_i Q_i + L_j Q_j`` is
 5-dimensional, and with a vertex of each other leg it is a facet (normal
 ``+-(p_i x d, d)``, ``d = p_j - p_i``) on every stance of three or more legs. Level feet on a
-rectangle add many more: 295 of 1152 facets, on average over 300 consecutive four-leg joint
-states of the default bag.
+rectangle add many more: 497 of 1347 facets, on average over 300 consecutive four-leg joint
+states of the default bag (``examples/experiments/fws_facet_changes.py``).
 (2) finds such a facet through its independent sub-choices, whose check values (3) vanish
 exactly: the slack keeps them, and the caller's deduplication merges their rows, all but
-copies whose rounding differs (3050 rows for those 1152 facets). A facet tracker that assumes
-simple facets fails on them (README, "Speed: awp_bench").
+copies whose rounding differs (3224 rows for those 1347 facets, 638 of them supporting
+halfspaces of smaller faces). A facet tracker that assumes simple facets fails on them (README,
+"Speed: awp_bench").
 
 Organisation and cost. Choices are grouped by *pattern* (the dimensions ``d_k`` in decreasing
 order; reordering legs only flips the sign of ``a``, and both signs are tested), and all leg

@@ -1,0 +1,380 @@
+"""
+Time the parts of the FWS's (2, 1, 1, 1) slice search, and two variants that were slower.
+
+::
+
+    PYTHONPATH=. .venv/bin/python examples/experiments/slice_search_variants.py [--postures 200]
+
+The measurement behind the README's "Speed: awp_bench" paragraph on the facet search. It records
+the arguments of every (2, 1, 1, 1) call of
+:func:`awp_ros.geometry.kernels.slice_facet_normal_parts` while the FWS of ``--postures`` random
+HyQ postures (seed 0, joints +-0.1 rad around standing, as ``awp_bench``) is computed, then
+times, alternated in three passes over the same calls, variants of
+:func:`awp_ros.geometry.kernels._slice_search` compiled from its own source with a few lines
+replaced (each replaced text must be found exactly once, else the script stops):
+
+- ``copy``: the kernel unchanged (the baseline of the same compilation);
+- ``no survivors``, ``no slot bounds``, ``no forms``: the time split of one node (leg A's facet
+  class, an edge class of B and one of C): without the candidates that pass the node legs'
+  slot bounds (their normal and legs A and D's checks), without those slot bounds, without the
+  node legs' check forms ``G = -*(P ^ s)`` either;
+- ``node pruned``: a node is skipped when legs A, B and C's checks, restricted to the node's
+  plane of normals, leave no direction (tested at every boundary ray of a check);
+- ``float32 prefilter``: all four legs' checks at every candidate in float32 vector loops
+  (slack ``cone_tol + 1e-6`` of each value's bound, above float32 rounding), then the float64
+  tests of the kernel on the candidates that pass.
+
+It prints the mean rows and choices per call, whether each variant's rows equal the kernel's
+(bit for bit, or how many differ), the nodes the pruning keeps, and each variant's mean time per
+call [ms].
+"""
+
+from __future__ import annotations
+
+import argparse
+import inspect
+import textwrap
+import time
+
+import numba
+import numpy as np
+
+from awp_ros.geometry import kernels as K
+
+#: The kernel's lines a variant replaces: (old, new) pairs.
+_NO_SURVIVORS = [(
+    '                        if not (pos or neg):\n                            continue\n'
+    '                        for i in range(4):\n                            r3[i] = R[i, d]\n',
+    '                        if True:\n                            continue\n'
+    '                        for i in range(4):\n                            r3[i] = R[i, d]\n')]
+_NO_SLOT_BOUNDS = [
+    ('_slot_bounds(GB, gB, kB, cB, R, Rn, nR, f1, h1, mn, mx)',
+     'f1[:nR] = -1.0; h1[:nR] = 1.0'),
+    ('_slot_bounds(GC, gC, kC, cC, R, Rn, nR, f2, h2, mn, mx)',
+     'f2[:nR] = -1.0; h2[:nR] = 1.0')]
+_NO_FORMS = _NO_SLOT_BOUNDS + [
+    ('_cross4(P, SB[b, s, j], GB[s, j])', 'pass'),
+    ('_cross4(P, SC[c, s, j], GC[s, j])', 'pass')]
+_ARRAYS = '    mn, mx = np.empty(mP), np.empty(mP)\n'
+_CANDIDATES = "                    # The candidates: the node legs' checks first"
+_PRUNED = [
+    (_ARRAYS, _ARRAYS + textwrap.indent(textwrap.dedent("""\
+        GA, gA = np.empty((kA, cA, 4)), np.empty((kA, cA))
+        e1, e2, unit = np.empty(4), np.empty(4), np.empty(4)
+        nmax = kA * cA + kB * cB + kC * cC
+        fu, fv, fs = np.empty(nmax), np.empty(nmax), np.empty(nmax)
+        fslot = np.empty(nmax, dtype=np.int64)
+        slot_leg = np.empty(kA + kB + kC, dtype=np.int64)
+        slot_ok = np.empty(kA + kB + kC, dtype=np.bool_)
+        nodes = 0
+        kept_nodes = 0
+        """), '    ')),
+    (_CANDIDATES, textwrap.indent(textwrap.dedent("""\
+        for s in range(kA):
+            for j in range(cA):
+                _cross4(P, SA[s, j], GA[s, j])
+                for i in range(4):
+                    GA[s, j, i] = -GA[s, j, i]
+                gA[s, j] = tA[s, j] * nP
+        nodes += 1
+        if not _node_feasible(P, GA, gA, kA, cA, GB, gB, kB, cB, GC, gC, kC, cC, pair, e1, e2,
+                              unit, fu, fv, fs, fslot, slot_leg, slot_ok):
+            continue
+        kept_nodes += 1
+        """), ' ' * 20) + _CANDIDATES),
+    ('    return npos, nneg, choices\n',
+     '    return npos, nneg, choices * 0 + nodes * 100000 + kept_nodes\n')]
+_PREFILTER = [
+    (_ARRAYS, _ARRAYS + textwrap.indent(textwrap.dedent("""\
+        rho = 1.0 + 1e-6 / cone_tol
+        f32 = np.float32
+        P32 = np.empty(6, dtype=f32)
+        R32, Rn32 = np.zeros((4, mP), dtype=f32), np.zeros(mP, dtype=f32)
+        QD = np.zeros((kD, cD, 6, mP), dtype=f32)
+        TD = np.full((kD, cD, mP), -np.inf, dtype=f32)
+        GA, gA = np.empty((kA, cA, 4)), np.empty((kA, cA))
+        GA32, gA32 = np.empty((kA, cA, 4), dtype=f32), np.empty((kA, cA), dtype=f32)
+        GB32, gB32 = np.empty((kB, cB, 4), dtype=f32), np.empty((kB, cB), dtype=f32)
+        GC32, gC32 = np.empty((kC, cC, 4), dtype=f32), np.empty((kC, cC), dtype=f32)
+        fA, hA, fB, hB = (np.empty(mP, dtype=f32), np.empty(mP, dtype=f32),
+                          np.empty(mP, dtype=f32), np.empty(mP, dtype=f32))
+        fC, hC, fD, hD = (np.empty(mP, dtype=f32), np.empty(mP, dtype=f32),
+                          np.empty(mP, dtype=f32), np.empty(mP, dtype=f32))
+        mn32, mx32 = np.empty(mP, dtype=f32), np.empty(mP, dtype=f32)
+        """), '    ')),
+    ('                _slice_checks(n, dD, Dc[D, e], Dm[D, e], cone_tol, SD[e], tD[e])\n',
+     '                _slice_checks(n, dD, Dc[D, e], Dm[D, e], cone_tol, SD[e], tD[e])\n'
+     + textwrap.indent(textwrap.dedent("""\
+        for i in range(4):
+            R32[i, e] = r3[i]
+        Rn32[e] = Rn[e]
+        for s in range(kD):
+            for j in range(cD):
+                _wedge_form(r3, SD[e, s, j], QD[s, j], e)
+                TD[s, j, e] = tD[e, s, j] * rho * Rn[e]
+        """), ' ' * 16)),
+    ('                    _slot_bounds(GB, gB, kB, cB, R, Rn, nR, f1, h1, mn, mx)\n'
+     '                    if not pair:\n'
+     '                        _slot_bounds(GC, gC, kC, cC, R, Rn, nR, f2, h2, mn, mx)\n'
+     '                    for d in range(nD[D]):\n'
+     '                        pos = f1[d] >= 0.0\n'
+     '                        neg = h1[d] <= 0.0\n'
+     '                        if not pair:\n'
+     '                            pos = pos and f2[d] >= 0.0\n'
+     '                            neg = neg and h2[d] <= 0.0\n',
+     textwrap.indent(textwrap.dedent("""\
+        for i in range(6):
+            P32[i] = P[i]
+        _node_forms32(P, nP, SA, tA, kA, cA, rho, GA, gA, GA32, gA32)
+        _node_forms32(P, nP, SB[b], tB[b], kB, cB, rho, GB, gB, GB32, gB32)
+        _slot_bounds(GA32, gA32, kA, cA, R32, Rn32, nR, fA, hA, mn32, mx32)
+        _slot_bounds(GB32, gB32, kB, cB, R32, Rn32, nR, fB, hB, mn32, mx32)
+        if not pair:
+            _node_forms32(P, nP, SC[c], tC[c], kC, cC, rho, GC, gC, GC32, gC32)
+            _slot_bounds(GC32, gC32, kC, cC, R32, Rn32, nR, fC, hC, mn32, mx32)
+        else:
+            for d in range(nR):
+                fC[d] = f32(np.inf)
+                hC[d] = f32(-np.inf)
+        _wedge_bounds(P32, QD, TD, kD, cD, nR, fD, hD, mn32, mx32)
+        nP32 = f32(nP)
+        for d in range(nR):
+            lo = min(min(fA[d], fB[d]), min(fC[d], fD[d] * nP32))
+            hi = max(max(hA[d], hB[d]), max(hC[d], hD[d] * nP32))
+            mn32[d] = lo if lo > -hi else -hi
+        for d in range(nD[D]):
+            if not mn32[d] >= 0.0:
+                continue
+            f1d, h1d = _leg_bounds_at(GB, gB, kB, cB, R, Rn, d)
+            pos = f1d >= 0.0
+            neg = h1d <= 0.0
+            if not pair:
+                f2d, h2d = _leg_bounds_at(GC, gC, kC, cC, R, Rn, d)
+                pos = pos and f2d >= 0.0
+                neg = neg and h2d <= 0.0
+        """), ' ' * 20))]
+
+
+@numba.njit(inline='always')
+def _node_checks(G, g, k, c, e1, e2, leg, sid, fu, fv, fs, fslot, nf, slot_leg):
+    """Append a leg's checks of its present slots in the node plane's basis (e1, e2)."""
+    for s in range(k):
+        if not g[s, 0] > -np.inf:
+            continue
+        slot_leg[sid] = leg
+        for j in range(c):
+            fu[nf] = G[s, j, 0] * e1[0] + G[s, j, 1] * e1[1] + G[s, j, 2] * e1[2] \
+                + G[s, j, 3] * e1[3]
+            fv[nf] = G[s, j, 0] * e2[0] + G[s, j, 1] * e2[1] + G[s, j, 2] * e2[2] \
+                + G[s, j, 3] * e2[3]
+            fs[nf] = g[s, j]
+            fslot[nf] = sid
+            nf += 1
+        sid += 1
+    return nf, sid
+
+
+@numba.njit(inline='always')
+def _node_feasible(P, GA, gA, kA, cA, GB, gB, kB, cB, GC, gC, kC, cC, pair, e1, e2, unit,
+                   fu, fv, fs, fslot, slot_leg, slot_ok):
+    """
+    Whether some direction of the node plane passes legs A, B (and C).
+
+    The plane ``{x : r1 . x = r2 . x = 0}`` gets an orthonormal basis (the longest
+    ``*(P ^ e_i)``, then ``*(P ^ e1)``); a check ``s . x(y) = G . y`` is then a 2D form, and a
+    nonempty intersection of the legs' slot cones contains a boundary ray of one of them.
+    """
+    best = -1.0
+    for i in range(4):
+        unit[:] = 0.0
+        unit[i] = 1.0
+        K._cross4(P, unit, e2)
+        nn = e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2] + e2[3] * e2[3]
+        if nn > best:
+            best = nn
+            e1[:] = e2
+    e1 /= np.sqrt(best)
+    K._cross4(P, e1, e2)
+    e2 /= K._norm4(e2)
+    nf, ns = _node_checks(GA, gA, kA, cA, e1, e2, 0, 0, fu, fv, fs, fslot, 0, slot_leg)
+    nf, ns = _node_checks(GB, gB, kB, cB, e1, e2, 1, ns, fu, fv, fs, fslot, nf, slot_leg)
+    legs = 2
+    if not pair:
+        nf, ns = _node_checks(GC, gC, kC, cC, e1, e2, 2, ns, fu, fv, fs, fslot, nf, slot_leg)
+        legs = 3
+    any_check = False
+    for i in range(nf):
+        gu, gv = fu[i], fv[i]
+        g2 = gu * gu + gv * gv
+        if not g2 > fs[i] * fs[i]:
+            continue
+        any_check = True
+        ng = np.sqrt(g2)
+        for sign in range(2):
+            y0 = -gv if sign == 0 else gv
+            y1 = gu if sign == 0 else -gu
+            slot_ok[:ns] = True
+            for j in range(nf):
+                if fu[j] * y0 + fv[j] * y1 + fs[j] * ng < 0.0:
+                    slot_ok[fslot[j]] = False
+            passed = 0
+            for s in range(ns):
+                if slot_ok[s]:
+                    passed |= 1 << slot_leg[s]
+            if passed == (1 << legs) - 1:
+                return True
+    return not any_check
+
+
+@numba.njit(inline='always')
+def _wedge_form(r, s, Q, d):
+    """Write Q[:, d] with ``P . Q[:, d] = det[r1; r2; r; s]`` for ``P = r1 ^ r2``."""
+    Q[0, d] = r[2] * s[3] - r[3] * s[2]
+    Q[1, d] = r[3] * s[1] - r[1] * s[3]
+    Q[2, d] = r[1] * s[2] - r[2] * s[1]
+    Q[3, d] = r[0] * s[3] - r[3] * s[0]
+    Q[4, d] = r[2] * s[0] - r[0] * s[2]
+    Q[5, d] = r[0] * s[1] - r[1] * s[0]
+
+
+@numba.njit(inline='always', fastmath=K._FASTMATH)
+def _wedge_bounds(P, Q, t, k, c, nR, f, h, mn, mx):
+    """
+    Write the candidate leg's slot bounds (as :func:`kernels._slot_bounds` writes them).
+
+    Its check (s, j) at candidate d is ``P . Q[s, j, :, d]``, its slack ``t[s, j, d]``.
+    """
+    for s in range(k):
+        for j in range(c):
+            Qs, T = Q[s, j], t[s, j]
+            for d in range(nR):
+                v = P[0] * Qs[0, d] + P[1] * Qs[1, d] + P[2] * Qs[2, d] + P[3] * Qs[3, d] \
+                    + P[4] * Qs[4, d] + P[5] * Qs[5, d]
+                lo, hi = v + T[d], v - T[d]
+                first = j == 0
+                mn[d] = lo if first or lo < mn[d] else mn[d]
+                mx[d] = hi if first or hi > mx[d] else mx[d]
+        for d in range(nR):
+            first = s == 0
+            f[d] = mn[d] if first or mn[d] > f[d] else f[d]
+            h[d] = mx[d] if first or mx[d] < h[d] else h[d]
+
+
+@numba.njit(inline='always', fastmath=K._FASTMATH)
+def _node_forms32(P, nP, S, t, k, c, rho, G, g, G32, g32):
+    """Write a node leg's forms ``G = -*(P ^ s)``, slack ``t |P|``, and float32 copies."""
+    for s in range(k):
+        for j in range(c):
+            K._cross4(P, S[s, j], G[s, j])
+            for i in range(4):
+                G[s, j, i] = -G[s, j, i]
+                G32[s, j, i] = G[s, j, i]
+            g[s, j] = t[s, j] * nP
+            g32[s, j] = g[s, j] * rho
+
+
+@numba.njit(inline='always', fastmath=K._FASTMATH)
+def _leg_bounds_at(G, g, k, c, R, Rn, d):
+    """(f, h) of one leg at candidate d, in float64, as :func:`kernels._slot_bounds`."""
+    f, h = -np.inf, np.inf
+    for s in range(k):
+        mn, mx = np.inf, -np.inf
+        for j in range(c):
+            v = G[s, j, 0] * R[0, d] + G[s, j, 1] * R[1, d] + G[s, j, 2] * R[2, d] \
+                + G[s, j, 3] * R[3, d]
+            w = g[s, j] * Rn[d]
+            mn, mx = min(mn, v + w), max(mx, v - w)
+        f, h = max(f, mn), min(h, mx)
+    return f, h
+
+
+def variant(replacements: list[tuple[str, str]]):
+    """Compile ``_slice_search`` with ``replacements`` applied to its source (each found once)."""
+    source = inspect.getsource(K._slice_search.py_func).replace('@_jit(fastmath=True)\n', '')
+    for old, new in replacements:
+        if source.count(old) != 1:
+            raise SystemExit(f'the kernel changed: {old[:60]!r} found {source.count(old)} times')
+        source = source.replace(old, new)
+    namespace = dict(vars(K))
+    namespace.update(_node_feasible=_node_feasible, _wedge_form=_wedge_form,
+                     _wedge_bounds=_wedge_bounds, _node_forms32=_node_forms32,
+                     _leg_bounds_at=_leg_bounds_at)
+    exec(textwrap.dedent(source), namespace)
+    return numba.njit(fastmath=K._FASTMATH)(namespace['_slice_search'])
+
+
+def record_calls(postures: int) -> list[tuple]:
+    """Return the arguments of the (2, 1, 1, 1) searches of the FWS of random HyQ postures."""
+    from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator
+    ev = FeasibilityEvaluator('hyq')
+    names = list(ev.standing_state().joint_positions)
+    q0 = np.array([ev.standing_state().joint_positions[n] for n in names])
+    rng = np.random.default_rng(0)
+    calls, original = [], K.slice_facet_normal_parts
+
+    def spy(positions, U, groups, dims, legs, cone_tol, normal_tol):
+        if tuple(dims) == (2, 1, 1, 1):
+            A, E = groups[2], groups[1]
+            An = np.ascontiguousarray(K.cross3(A[0][:, :, 0], A[0][:, :, 1]))
+            calls.append((np.array(positions), An, *[np.array(x) for x in A[1:]], False,
+                          *[np.array(x) for x in E], False, *[np.array(x) for x in E],
+                          *[np.array(x) for x in E], np.ascontiguousarray(legs, dtype=np.int64),
+                          np.array(U), float(cone_tol), float(normal_tol)))
+        return original(positions, U, groups, dims, legs, cone_tol, normal_tol)
+
+    K.slice_facet_normal_parts = spy
+    try:
+        for q in q0 + rng.uniform(-0.1, 0.1, size=(postures, q0.size)):
+            state = ev.standing_state()
+            state.joint_positions = dict(zip(names, q.tolist()))
+            compute_fws(*ev.fws_job(ev.evaluate(state, fws=False)))
+    finally:
+        K.slice_facet_normal_parts = original
+    return calls
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Print the rows, nodes and times of the variants (module docstring)."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--postures', type=int, default=200)
+    args = parser.parse_args(argv)
+    calls = record_calls(args.postures)
+    out = np.empty((1 << 14, 6)), np.empty((1 << 14, 6))
+    variants = {'kernel': K._slice_search, 'copy': variant([]),
+                'no survivors': variant(_NO_SURVIVORS),
+                'no slot bounds': variant(_NO_SURVIVORS + _NO_SLOT_BOUNDS),
+                'no forms': variant(_NO_SURVIVORS + _NO_FORMS),
+                'node pruned': variant(_PRUNED), 'float32 prefilter': variant(_PREFILTER)}
+
+    def rows(fn, call):
+        npos, nneg, count = fn(*call, *out)
+        return np.vstack([out[0][:npos], out[1][:nneg]]), count
+
+    reference = [rows(K._slice_search, call) for call in calls]
+    print(f'{len(calls)} (2, 1, 1, 1) searches: mean {np.mean([len(r) for r, _ in reference]):.0f}'
+          f' rows, {np.mean([n for _, n in reference]):.0f} face choices')
+    for name in ('copy', 'node pruned', 'float32 prefilter'):
+        got = [rows(variants[name], call) for call in calls]
+        same = sum(g.shape == r.shape and np.array_equal(g, r)
+                   for (g, _), (r, _) in zip(got, reference))
+        print(f'{name}: rows equal to the kernel rows bit for bit in {same} of {len(calls)}; '
+              f'mean rows {np.mean([len(g) for g, _ in got]):.2f}')
+        if name == 'node pruned':
+            nodes = np.array([n for _, n in got])
+            print(f'  nodes kept {np.mean(nodes % 100000):.0f} of {np.mean(nodes // 100000):.0f}')
+    for fn in variants.values():                   # compiled before the timed passes
+        fn(*calls[0], *out)
+    times = {name: [] for name in variants}
+    for _ in range(3):
+        for name, fn in variants.items():
+            t0 = time.perf_counter()
+            for call in calls:
+                fn(*call, *out)
+            times[name].append(1e3 * (time.perf_counter() - t0) / len(calls))
+    for name, ms in times.items():
+        print(f'{name:>18}: ' + ' / '.join(f'{m:.3f}' for m in ms) + ' ms per call')
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,68 @@
+"""The measurement scripts of ``examples/experiments`` (the README's figures), checked."""
+
+from pathlib import Path
+import sys
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull
+
+from cases import hyq_feet, vertex_sums
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / 'examples' / 'experiments'))
+
+
+def _leg(rng) -> SimpleNamespace:
+    """Return a random 3D polytope [N] with its vertices and facet rows (qhull's)."""
+    points = rng.normal(size=(7, 3)) * [300.0, 300.0, 900.0] + [0.0, 0.0, 800.0]
+    hull = ConvexHull(points)
+    return SimpleNamespace(vertices=points[hull.vertices], A=hull.equations[:, :3],
+                           b=-hull.equations[:, 3])
+
+
+@pytest.mark.parametrize('K', [3, 4])
+def test_facet_names_count_the_facets_of_qhull_and_the_pair_facets(K):
+    """
+    ``fws_facet_changes.facet_names`` finds as many facets as qhull on the vertex sums.
+
+    Of them, on legs in general position, the degenerate ones are the two of every pair of
+    feet (README, "Speed": faces adding up to 6), K (K - 1) of them.
+    """
+    from fws_facet_changes import facet_names
+    from awp_ros.wrench.feasible_wrench_set import minkowski_sum_of_lifts
+    rng = np.random.default_rng(40 + K)
+    legs = [_leg(rng) for _ in range(K)]
+    feet = hyq_feet(rng, K)
+    S = minkowski_sum_of_lifts(feet, [leg.vertices for leg in legs])
+    found = facet_names(feet, legs, S.A)
+    points = vertex_sums(feet, [leg.vertices for leg in legs])
+    eq = ConvexHull(points).equations
+    eq /= np.linalg.norm(eq[:, :6], axis=1)[:, None]
+    planes = np.unique(np.round(np.column_stack([eq[:, :6], eq[:, 6] / np.abs(points).max()]),
+                                6), axis=0)
+    assert len(found['names']) == len(planes)
+    assert found['degenerate'] == K * (K - 1)
+
+
+def test_slice_search_variants_compile_and_the_exact_ones_give_the_kernel_rows():
+    """The script's variants still apply to the kernel; its copy and prefilter match it."""
+    import slice_search_variants as SV
+    from awp_ros.geometry import kernels as K
+    calls = SV.record_calls(2)
+    assert len(calls) == 2
+    out = np.empty((1 << 14, 6)), np.empty((1 << 14, 6))
+
+    def rows(fn, call):
+        npos, nneg, _ = fn(*call, *out)
+        assert npos >= 0
+        return np.vstack([out[0][:npos], out[1][:nneg]])
+
+    for replacements, exact in ((SV._PREFILTER, True), (SV._PRUNED, False),
+                                (SV._NO_SURVIVORS + SV._NO_FORMS, False)):
+        fn = SV.variant(replacements)
+        for call in calls:
+            got, ref = rows(fn, call), rows(K._slice_search, call)
+            if exact:
+                assert np.array_equal(got, ref)
