@@ -47,7 +47,7 @@ def test_facet_names_count_the_facets_of_qhull_and_the_pair_facets(K):
 
 
 def test_slice_search_variants_compile_and_the_exact_ones_give_the_kernel_rows():
-    """The script's variants still apply to the kernel; its copy and prefilter match it."""
+    """The script's variants still apply to the kernel; the exact ones give its rows."""
     import slice_search_variants as SV
     from awp_ros.geometry import kernels as K
     calls = SV.record_calls(2)
@@ -59,7 +59,7 @@ def test_slice_search_variants_compile_and_the_exact_ones_give_the_kernel_rows()
         assert npos >= 0
         return np.vstack([out[0][:npos], out[1][:nneg]])
 
-    for replacements, exact in ((SV._PREFILTER, True), (SV._PRUNED, False),
+    for replacements, exact in ((SV._PREFILTER, True), (SV._BATCHED, True), (SV._PRUNED, False),
                                 (SV._NO_SURVIVORS + SV._NO_FORMS, False)):
         fn = SV.variant(replacements)
         for call in calls:

@@ -1,5 +1,5 @@
 """
-Time the parts of the FWS's (2, 1, 1, 1) slice search, and two variants that were slower.
+Time the parts of the FWS's (2, 1, 1, 1) slice search, and three variants that were slower.
 
 ::
 
@@ -22,7 +22,10 @@ replaced (each replaced text must be found exactly once, else the script stops):
   plane of normals, leave no direction (tested at every boundary ray of a check);
 - ``float32 prefilter``: all four legs' checks at every candidate in float32 vector loops
   (slack ``cone_tol + 1e-6`` of each value's bound, above float32 rounding), then the float64
-  tests of the kernel on the candidates that pass.
+  tests of the kernel on the candidates that pass;
+- ``batched survivors``: the candidates that pass the node legs are kept, and processed in one
+  batch per facet class of A (their normals, then legs A and D's checks, in loops over the
+  batch) instead of one at a time.
 
 It prints the mean rows and choices per call, whether each variant's rows equal the kernel's
 (bit for bit, or how many differ), the nodes the pruning keeps, and each variant's mean time per
@@ -153,6 +156,69 @@ _PREFILTER = [
                 pos = pos and f2d >= 0.0
                 neg = neg and h2d <= 0.0
         """), ' ' * 20))]
+
+
+_BATCHED = [
+    (_ARRAYS, _ARRAYS + """    cap = Bd.shape[1] * max(Cd.shape[1], 1) * max(mD, 1)
+    BP, Bn = np.empty((6, cap)), np.empty(cap)
+    Bi = np.empty(cap, dtype=np.int64)
+    Bpos, Bneg = np.empty(cap, dtype=np.bool_), np.empty(cap, dtype=np.bool_)
+    X, NX = np.empty((4, cap)), np.empty(cap)
+    FA, HA, FD, HD = np.empty(cap), np.empty(cap), np.empty(cap), np.empty(cap)
+    bmn, bmx = np.empty(cap), np.empty(cap)
+"""),
+    ('            _slice_checks(n, zero, Ac[A, fa], Am[A, fa], cone_tol, SA, tA)\n',
+     '            _slice_checks(n, zero, Ac[A, fa], Am[A, fa], cone_tol, SA, tA)\n'
+     '            ns = 0\n'),
+    (('                        for i in range(4):\n                            r3[i] = R[i, d]\n',
+      '    return npos, nneg, choices\n'),
+     """                        for i in range(6):
+                            BP[i, ns] = P[i]
+                        Bn[ns] = nP
+                        Bi[ns] = d
+                        Bpos[ns] = pos
+                        Bneg[ns] = neg
+                        ns += 1
+            # The candidates that pass the node legs, in one batch per facet class of A: their
+            # normals x, then leg A's and the candidate leg's checks at x.
+            for s in range(ns):
+                d = Bi[s]
+                c0, c1, c2, c3 = R[0, d], R[1, d], R[2, d], R[3, d]
+                p0, p1, p2, p3, p4, p5 = BP[0, s], BP[1, s], BP[2, s], BP[3, s], BP[4, s], BP[5, s]
+                d123 = c1 * p5 - c2 * p4 + c3 * p3
+                d023 = c0 * p5 - c2 * p2 + c3 * p1
+                d013 = c0 * p4 - c1 * p2 + c3 * p0
+                d012 = c0 * p3 - c1 * p1 + c2 * p0
+                X[0, s] = -d123
+                X[1, s] = d023
+                X[2, s] = -d013
+                X[3, s] = d012
+                NX[s] = np.sqrt(d123 * d123 + d023 * d023 + d013 * d013 + d012 * d012)
+            _slot_bounds(SA, tA, kA, cA, X, NX, ns, FA, HA, bmn, bmx)
+            _slot_bounds_of(SD, tD, Bi, kD, cD, X, NX, ns, FD, HD, bmn, bmx)
+            for s in range(ns):
+                if not NX[s] > normal_tol * Bn[s] * Rn[Bi[s]]:       # rank-deficient choice
+                    continue
+                pos = Bpos[s] and FA[s] >= 0.0 and FD[s] >= 0.0
+                neg = Bneg[s] and HA[s] <= 0.0 and HD[s] <= 0.0
+                if not (pos or neg):
+                    continue
+                for i in range(4):
+                    x[i] = X[i, s]
+                if pos:
+                    if npos == out_pos.shape[0]:
+                        return -1, -1, choices
+                    _slice_normal(x, n, pA, U, out_pos, npos, a)
+                    npos += 1
+                if neg:
+                    if nneg == out_neg.shape[0]:
+                        return -1, -1, choices
+                    for i in range(4):
+                        x[i] = -x[i]
+                    _slice_normal(x, n, pA, U, out_neg, nneg, a)
+                    nneg += 1
+    return npos, nneg, choices
+""")]
 
 
 @numba.njit(inline='always')
@@ -288,17 +354,57 @@ def _leg_bounds_at(G, g, k, c, R, Rn, d):
     return f, h
 
 
-def variant(replacements: list[tuple[str, str]]):
-    """Compile ``_slice_search`` with ``replacements`` applied to its source (each found once)."""
+@numba.njit(inline='always', fastmath=K._FASTMATH)
+def _slot_bounds_of(S, t, idx, k, c, X, NX, n, f, h, mn, mx):
+    """Write :func:`kernels._slot_bounds` of items ``i`` with their own checks ``S[idx[i]]``."""
+    for s in range(k):
+        for j in range(c):
+            for i in range(n):
+                e = idx[i]
+                v = S[e, s, j, 0] * X[0, i] + S[e, s, j, 1] * X[1, i] \
+                    + S[e, s, j, 2] * X[2, i] + S[e, s, j, 3] * X[3, i]
+                w = t[e, s, j] * NX[i]
+                lo = v + w
+                hi = v - w
+                if j == 0:
+                    mn[i] = lo
+                    mx[i] = hi
+                else:
+                    mn[i] = lo if lo < mn[i] else mn[i]
+                    mx[i] = hi if hi > mx[i] else mx[i]
+        if c == 0:
+            for i in range(n):
+                mn[i] = np.inf
+                mx[i] = -np.inf
+        if s == 0:
+            for i in range(n):
+                f[i] = mn[i]
+                h[i] = mx[i]
+        else:
+            for i in range(n):
+                f[i] = mn[i] if mn[i] > f[i] else f[i]
+                h[i] = mx[i] if mx[i] < h[i] else h[i]
+
+
+def variant(replacements: list[tuple]):
+    """
+    Compile ``_slice_search`` with ``replacements`` applied to its source (each found once).
+
+    Each is ``(old, new)``; ``old`` may be ``(first, last)``: from the first occurrence of
+    ``first`` through the next of ``last``.
+    """
     source = inspect.getsource(K._slice_search.py_func).replace('@_jit(fastmath=True)\n', '')
     for old, new in replacements:
+        if isinstance(old, tuple):          # (first line, last line): the text between
+            start = source.find(old[0])
+            old = source[start:source.index(old[1], start) + len(old[1])]
         if source.count(old) != 1:
             raise SystemExit(f'the kernel changed: {old[:60]!r} found {source.count(old)} times')
         source = source.replace(old, new)
     namespace = dict(vars(K))
     namespace.update(_node_feasible=_node_feasible, _wedge_form=_wedge_form,
                      _wedge_bounds=_wedge_bounds, _node_forms32=_node_forms32,
-                     _leg_bounds_at=_leg_bounds_at)
+                     _leg_bounds_at=_leg_bounds_at, _slot_bounds_of=_slot_bounds_of)
     exec(textwrap.dedent(source), namespace)
     return numba.njit(fastmath=K._FASTMATH)(namespace['_slice_search'])
 
@@ -344,7 +450,8 @@ def main(argv: list[str] | None = None) -> int:
                 'no survivors': variant(_NO_SURVIVORS),
                 'no slot bounds': variant(_NO_SURVIVORS + _NO_SLOT_BOUNDS),
                 'no forms': variant(_NO_SURVIVORS + _NO_FORMS),
-                'node pruned': variant(_PRUNED), 'float32 prefilter': variant(_PREFILTER)}
+                'node pruned': variant(_PRUNED), 'float32 prefilter': variant(_PREFILTER),
+                'batched survivors': variant(_BATCHED)}
 
     def rows(fn, call):
         npos, nneg, count = fn(*call, *out)
@@ -353,7 +460,7 @@ def main(argv: list[str] | None = None) -> int:
     reference = [rows(K._slice_search, call) for call in calls]
     print(f'{len(calls)} (2, 1, 1, 1) searches: mean {np.mean([len(r) for r, _ in reference]):.0f}'
           f' rows, {np.mean([n for _, n in reference]):.0f} face choices')
-    for name in ('copy', 'node pruned', 'float32 prefilter'):
+    for name in ('copy', 'node pruned', 'float32 prefilter', 'batched survivors'):
         got = [rows(variants[name], call) for call in calls]
         same = sum(g.shape == r.shape and np.array_equal(g, r)
                    for (g, _), (r, _) in zip(got, reference))
