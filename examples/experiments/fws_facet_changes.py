@@ -30,12 +30,10 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[2]
 
 
-def _rank(X: np.ndarray, rtol: float = 1e-9) -> int:
-    """Numerical rank of the rows of X (0 for no rows)."""
-    if X.shape[0] == 0:
-        return 0
-    s = np.linalg.svd(X, compute_uv=False)
-    return int(np.count_nonzero(s > rtol * max(1.0, s[0])))
+def _rank(X: np.ndarray) -> int:
+    """Return the numerical rank of the rows of X (:func:`orthonormal_span`'s, rtol 1e-9)."""
+    from awp_ros.geometry.linalg import orthonormal_span
+    return orthonormal_span(X).shape[1]
 
 
 def facet_names(positions: np.ndarray, legs: list, A: np.ndarray) -> dict:
