@@ -66,3 +66,26 @@ def test_slice_search_variants_compile_and_the_exact_ones_give_the_kernel_rows()
             got, ref = rows(fn, call), rows(K._slice_search, call)
             if exact:
                 assert np.array_equal(got, ref)
+
+
+def test_cycle_cost_split_times_every_kernel_call_of_the_loop():
+    """The split's parts add up: its wrapped calls are the evaluations' kernels and Pinocchio."""
+    import cycle_cost_split as C
+    out = C.split(count=20, passes=2)
+    names = {r['name'] for r in out['rows']}
+    assert {'_cycle_sets', '_cycle_regions', 'pin.rnea', 'pin.getFrameJacobian'} <= names
+    assert all(r['in_loop_us'] > 0.0 and r['isolated_us'] > 0.0 for r in out['rows'])
+    assert out['calls_in_loop_us'] == pytest.approx(sum(r['in_loop_us'] for r in out['rows']))
+    assert 0.0 < out['python_us'] < out['wrapped_loop_us']
+    assert next(r for r in out['rows'] if r['name'] == 'pin.getFrameJacobian')[
+        'calls_per_evaluation'] == 4.0                          # one per stance foot
+
+
+def test_ros_glue_floor_relays_every_joint_state():
+    """The relay answers every joint state of a short drive and its CPU is measured."""
+    import ros_glue_floor as G
+    out = G.measure(rate_hz=200.0, duration_s=2.0, domain=58)
+    assert out['sent'] == out['relayed'] == out['received'] == 400
+    assert 0.0 < out['relay_cpu_percent'] < 200.0
+    assert out['relay_ms_per_joint_state'] == pytest.approx(10.0 * out['relay_cpu_percent']
+                                                            / 200.0, rel=0.01)

@@ -6,8 +6,9 @@ Each sample perturbs every joint of the config's standing posture by a uniform o
 over the same states, as the node runs them (the per-cycle evaluation at the joint-state
 rate, the FWS apart, possibly at a lower rate):
 
-1. the per-cycle evaluation, ``evaluate(state, fws=False)``: its stages (``validate`` ...
-   ``margins``, :data:`~awp_ros.evaluation.evaluator.STAGES`) and ``total``;
+1. the per-cycle evaluation, ``evaluate(state, fws=False)``: its stages (``validate``,
+   ``model``, ``sets``, ``margins``, ``regions``: :data:`~awp_ros.evaluation.evaluator.STAGES`)
+   and ``total``;
 2. the FWS of each evaluated state (skipped with ``--no-fws``): ``fws_friction``, the
    friction-bounded leg polytopes both FWS methods start from (the per-cycle evaluation
    computes them only on use), then

@@ -8,27 +8,33 @@ whole-robot CoM; SI units). Stage names are the keys of ``timings_ms`` [ms]:
 2. ``model``: Pinocchio update, base at the origin with the measured orientation: bias
    torques ``rnea(q, v, a)``, LOCAL_WORLD_ALIGNED foot Jacobians, CoM, mass and the
    gravito-inertial wrench ``w = [m (c'' - g); L']`` (quasi-static ``[0, 0, m g, 0, 0, 0]``).
-3. ``force_polytopes``: per stance leg :math:`\{f : \tau_{min} \le b - J^T f \le
-   \tau_{max}\}` (closed-form parallelepipeds for 3-joint legs, batched).
-4. ``friction_polytopes``: each ∩ its friction pyramid ∩ ``n . f >= 0``, computed on first
-   use (:attr:`LegResult.friction_polytope`: the FWS, leg messages, markers); this stage only
-   proves each non-empty (a force-polytope vertex, or a point on the pyramid's axis, strictly
-   inside the pyramid) or, when that test fails, computes them to warn about a leg that
-   cannot push.
-5. ``awp``: :math:`\sum_k L_k \mathcal F_k`, a zonotope with 3K generators when every leg
-   is a parallelepiped (or a singular leg's flat image), else the exact Minkowski sum.
-6. ``cwc_fwp``: the contact wrench cone and FWP = AWP ∩ CWC (the seed's FWP).
-7. ``margins``: signed Euclidean margins and witnesses of ``w`` for AWP and FWP.
-8. ``regions``: the CoM regions at ``w``'s force and moment, exact: ``support_region``
+3. ``sets``: per stance leg the force polytope :math:`\{f : \tau_{min} \le b - J^T f \le
+   \tau_{max}\}` (closed-form parallelepipeds for 3-joint legs, batched); its
+   friction-bounded polytope (∩ its friction pyramid ∩ ``n . f >= 0``), computed on first
+   use (:attr:`LegResult.friction_polytope`: the FWS, leg messages, markers), this stage
+   only proving each non-empty (a force-polytope vertex, or a point on the pyramid's axis,
+   strictly inside the pyramid) or, when that test fails, computing them to warn about a
+   leg that cannot push; the AWP :math:`\sum_k L_k \mathcal F_k` (a zonotope with 3K
+   generators when every leg is a parallelepiped or a singular leg's flat image, else the
+   exact Minkowski sum); the contact wrench cone; and the FWP = AWP ∩ CWC (the seed's FWP).
+   With three or more non-singular three-joint legs and friction, all of it is one compiled
+   call (:func:`~awp_ros.geometry.kernels.cycle_sets`: the same kernels as the stage-by-stage
+   code, :meth:`FeasibilityEvaluator._sets`, on the same inputs, without Python between
+   them; the same results bit for bit).
+4. ``margins``: signed Euclidean margins and witnesses of ``w`` for AWP and FWP.
+5. ``regions``: the CoM regions at ``w``'s force and moment, exact: ``support_region``
    (:func:`~awp_ros.wrench.com_region.com_region`, the slice of the CWC, kept as
    ``result.cwc``), the feasible region
    (:func:`~awp_ros.wrench.com_region.feasible_region`, the projection of the contact-force
    LP; ``feasible_region_per_cycle``), ``fwp_region`` (the slice of the FWP), and the
    capture point when the state has a ``base_twist`` (the CoM velocity, Pinocchio's
-   ``vcom`` of the model stage). The support and the feasible region alone, the two that
-   planners use, are also timed as ``com_regions`` (part of ``regions``).
+   ``vcom`` of the model stage); after :func:`~awp_ros.geometry.kernels.cycle_sets`, the
+   three regions' kernels in one compiled call
+   (:func:`~awp_ros.geometry.kernels.cycle_regions`). The support and the feasible region
+   alone, the two that planners use, are also timed as ``com_regions`` (part of
+   ``regions``).
 
-``total`` is the wall time of the whole per-cycle evaluation, the eight stages back to back:
+``total`` is the wall time of the whole per-cycle evaluation, the five stages back to back:
 what ``evaluate(state, fws=False)`` costs. The feasible wrench set
 :math:`\sum_k L_k \mathcal F_{\mu,k}` is timed apart, as it may run at a lower rate
 (:meth:`FeasibilityEvaluator.add_fws`): ``fws`` (its exact H-rep, including the
@@ -54,28 +60,41 @@ import numpy as np
 from awp_ros.errors import AwpError, ConfigError, GeometryError, InputError
 from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
 from awp_ros.geometry import kernels
-from awp_ros.geometry.linalg import identity
+from awp_ros.geometry.linalg import GRAM_CERTIFY, identity
 from awp_ros.geometry.margin import directional_margins, polytope_margin
 from awp_ros.geometry.minkowski_facets import STEP_CHOICES
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.geometry.steps import run_steps, timed_steps
+from awp_ros.geometry.zonotope import facet_complements, facet_subsets, ZONOTOPE_TOLS
 from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.robot.model import RobotModel
-from awp_ros.robot.state import resolve_state, RobotState
-from awp_ros.wrench.com_region import (com_region, ComRegion, feasible_region,
-                                       feasible_region_of_rows)
+from awp_ros.robot.state import resolve_state, ResolvedState, RobotState
+from awp_ros.wrench.com_region import (com_region, ComRegion, EDGE_PARALLEL_TOL,
+                                       feasible_region, feasible_region_of_kernel,
+                                       feasible_region_of_rows, region_of_slice, slice_floor)
 from awp_ros.wrench.contact_forces import measured_contact_forces
-from awp_ros.wrench.contact_wrench_cone import contact_wrench_cone_unchecked
+from awp_ros.wrench.contact_wrench_cone import (cone_polytope, contact_wrench_cone_unchecked,
+                                                facets_key, last_facets, pyramid_rays,
+                                                record_facets)
 from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set_steps, minkowski_sum_of_lifts
 from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
 from awp_ros.wrench.friction_polytope import friction_rows, FrictionPolytopes, inside_force
-from awp_ros.wrench.wrench_polytope import awp_zonotope, feasible_wrench_polytope
+from awp_ros.wrench.wrench_polytope import awp_zonotope, feasible_wrench_polytope, zonotope_awp
 
 __all__ = ['compute_fws', 'compute_fws_steps', 'FeasibilityEvaluator', 'STAGES', 'warm_up']
 
 #: The per-cycle stages of :meth:`FeasibilityEvaluator.evaluate`, in order.
-STAGES = ('validate', 'model', 'force_polytopes', 'friction_polytopes', 'awp', 'cwc_fwp',
-          'margins', 'regions')
+STAGES = ('validate', 'model', 'sets', 'margins', 'regions')
+
+#: The tolerances of the compiled per-cycle calls, those of the stage-by-stage code's defaults:
+#: the cone's (``contact_wrench_cone``: span, side and rank), the friction proof's margin [N]
+#: (``inside_force``), a frictionless contact, the CoM regions' [m] and parallel edges, the
+#: least vertical force of a region [N] (``com_region``).
+_CONE_TOL = 1e-9
+_INSIDE_MARGIN = 1e-6
+_FRICTIONLESS_TOL = 1e-9
+_DISTANCE_TOL = 1e-9
+_VERTICAL_FORCE_TOL = 1e-6
 
 
 class FeasibilityEvaluator:
@@ -164,28 +183,9 @@ class FeasibilityEvaluator:
         vcom = model.data.vcom[0].copy() \
             if state.base_twist is not None and base_velocity_known else None
         t2 = clock()
-        forces, stacked, force_rows = self._force_polytopes(s.stance, kin.J, kin.bias,
-                                                            warnings)
-        t3 = clock()
-        frictions: FrictionPolytopes | list = []
-        if forces:
-            rows = self._friction_rows(s.normals, s.mus)
-            frictions = FrictionPolytopes(forces, rows)
-            proven = inside_force(forces, rows, stacked=force_rows)
-            for k in () if proven.all() else np.flatnonzero(~proven).tolist():
-                if frictions[k].is_empty:
-                    warnings.append(f'leg {s.stance[k]!r} cannot push on the ground within '
-                                    'its torque limits (empty friction-bounded polytope)')
-        t4 = clock()
-        if s.stance:
-            awp = awp_zonotope(p, *stacked) if stacked is not None else \
-                minkowski_sum_of_lifts(p, [F.vertices for F in forces])
-            t5 = clock()
-            cwc = contact_wrench_cone_unchecked(p, s.normals, s.mus, cfg.pyramid_sides)
-            fwp = feasible_wrench_polytope(awp, cwc)
-        else:
-            awp = fwp = cwc = _origin_set()
-            t5 = clock()
+        fused = self._cycle_sets(s, kin, warnings)
+        forces, frictions, force_rows, awp, cwc, fwp = fused if fused is not None else \
+            self._sets(s, kin, warnings)
         t6 = clock()
         tol = self.feasibility_tol
         awp_r = WrenchSetResult.from_margin('awp', awp, polytope_margin(
@@ -204,22 +204,34 @@ class FeasibilityEvaluator:
                                 forces[k].meta['near_singular'])
                 for k, foot in enumerate(s.stance)}
         t7 = clock()
-        support = _region(cwc, w, 'support region', warnings)
-        if force_rows is not None:
+        # With the sets of one compiled call, the regions' kernels in one more (when a
+        # vertical force defines them); each region the general code's when the kernel's
+        # fast path does not hold.
+        sliced = kernels.cycle_regions(
+            cwc.A, fwp.A, fwp.b, *force_rows[:2], self._friction_rows(s.normals, s.mus), p, w,
+            _DISTANCE_TOL, EDGE_PARALLEL_TOL, slice_floor(*w[:3].tolist())) \
+            if fused is not None and abs(w[2]) > _VERTICAL_FORCE_TOL else None
+        support = sliced and region_of_slice(cwc, sliced[0])
+        if support is None:
+            support = _region(cwc, w, 'support region', warnings)
+        if sliced is not None:
+            feasible = feasible_region_of_kernel(sliced[1])
+        elif force_rows is not None:
             feasible = feasible_region_of_rows(p, *force_rows[:2],
                                                self._friction_rows(s.normals, s.mus), w)
         else:
             feasible = feasible_region(p, forces, self._friction_rows(s.normals, s.mus),
                                        w[:3], w[3:]) if s.stance else None
         t8 = clock()
-        fwp_r.region = _region(fwp, w, 'FWP region', warnings)
+        fwp_r.region = sliced and region_of_slice(fwp, sliced[2])
+        if fwp_r.region is None:
+            fwp_r.region = _region(fwp, w, 'FWP region', warnings)
         capture = _capture_point(vcom, p, self._gravity)
         fwp_r.capture_point_margin = _point_margin(fwp_r.region, capture)
         t9 = clock()
         timings = {'validate': 1e3 * (t1 - t0), 'model': 1e3 * (t2 - t1),
-                   'force_polytopes': 1e3 * (t3 - t2), 'friction_polytopes': 1e3 * (t4 - t3),
-                   'awp': 1e3 * (t5 - t4), 'cwc_fwp': 1e3 * (t6 - t5),
-                   'margins': 1e3 * (t7 - t6), 'regions': 1e3 * (t9 - t7),
+                   'sets': 1e3 * (t6 - t2), 'margins': 1e3 * (t7 - t6),
+                   'regions': 1e3 * (t9 - t7),
                    'com_regions': 1e3 * (t8 - t7), 'total': 1e3 * (t9 - t0)}
         result = FeasibilityResult(cfg.robot_name, s.stance, kin.mass, kin.com, w, legs,
                                    awp_r, fwp_r, None, warnings, timings,
@@ -347,6 +359,82 @@ class FeasibilityEvaluator:
                                [leg.force_polytope for leg in legs], rows, wrench[:3],
                                wrench[3:])
 
+    def _sets(self, s: ResolvedState, kin, warnings: list[str]) -> tuple:
+        """
+        Return the ``sets`` stage computed stage by stage (any stance, any legs).
+
+        ``(forces, frictions, force_rows, awp, cwc, fwp)``, ``force_rows`` as
+        :meth:`_force_polytopes` returns them.
+        """
+        p = kin.p_foot__com
+        forces, stacked, force_rows = self._force_polytopes(s.stance, kin.J, kin.bias,
+                                                            warnings)
+        frictions: FrictionPolytopes | list = []
+        if forces:
+            rows = self._friction_rows(s.normals, s.mus)
+            frictions = FrictionPolytopes(forces, rows)
+            _friction_warnings(s.stance, frictions,
+                               inside_force(forces, rows, stacked=force_rows), warnings)
+        if not s.stance:
+            awp = fwp = cwc = _origin_set()
+            return forces, frictions, force_rows, awp, cwc, fwp
+        awp = awp_zonotope(p, *stacked) if stacked is not None else \
+            minkowski_sum_of_lifts(p, [F.vertices for F in forces])
+        cwc = contact_wrench_cone_unchecked(p, s.normals, s.mus, self.config.pyramid_sides)
+        return forces, frictions, force_rows, awp, cwc, feasible_wrench_polytope(awp, cwc)
+
+    def _cycle_sets(self, s: ResolvedState, kin, warnings: list[str]) -> tuple | None:
+        """
+        Return :meth:`_sets` from one compiled call (:func:`kernels.cycle_sets`), or None.
+
+        For three or more three-joint stance legs with friction, when every leg is
+        non-singular and the AWP and the CWC are full-dimensional (else None: the caller
+        takes :meth:`_sets`). The same kernels on the same inputs as :meth:`_sets`, so the
+        same sets, warnings and cone reuse, bit for bit.
+        """
+        K, sides = len(s.stance), self.config.pyramid_sides
+        if not (kernels.ENABLED and self._three_joint and 3 <= K <= kernels.MAX_BITS // 3
+                and K * sides <= kernels.MAX_BITS and float(s.mus.min()) > _FRICTIONLESS_TOL):
+            return None
+        p = kin.p_foot__com
+        rows = self._friction_rows(s.normals, s.mus)
+        rays = pyramid_rays(s.normals, s.mus, sides)
+        key = facets_key(rays, 6)
+        last = last_facets(key)
+        lo, hi = self._limits(s.stance)
+        tol = ZONOTOPE_TOLS
+        status, legs, proven, awp, cone, stacked = kernels.cycle_sets(
+            np.array(kin.J), np.array(kin.bias), lo, hi, self.singular_rtol, p, rays,
+            max(_CONE_TOL ** 2, GRAM_CERTIFY), facet_subsets(3 * K), facet_complements(3 * K),
+            tol['zero_tol'], max(tol['span_tol'] ** 2, GRAM_CERTIFY), tol['rank_tol'],
+            tol['incidence_tol'], last, _CONE_TOL, _CONE_TOL, rows, _INSIDE_MARGIN)
+        if status != 0:
+            return None
+        lifted, cone_A, spans, masks, reused = cone
+        record_facets(key, spans, masks, reused=reused)
+        center, gen, V, A, b, ratio = legs
+        forces = self._parallelepiped_polytopes(center, gen, V, A, b, ratio)
+        _leg_warnings(s.stance, forces, warnings)
+        frictions = FrictionPolytopes(forces, rows)
+        _friction_warnings(s.stance, frictions, proven, warnings)
+        awp = zonotope_awp(*awp, 3 * K)
+        cwc = cone_polytope(cone_A, lifted, identity(6))
+        fwp = feasible_wrench_polytope(awp, cwc, stacked=stacked)
+        return forces, frictions, (A, b, V), awp, cwc, fwp
+
+    def _parallelepiped_polytopes(self, center: np.ndarray, gen: np.ndarray, V: np.ndarray,
+                                  A: np.ndarray, b: np.ndarray, ratio: np.ndarray
+                                  ) -> list[Polytope | None]:
+        """Return the batched parallelepipeds as Polytopes, None for a singular leg."""
+        eye, zero = identity(3), np.zeros(3)
+        out: list[Polytope | None] = []
+        for k, r in enumerate(ratio.tolist()):
+            out.append(Polytope(3, V[k], A[k], b[k], zero, eye, {
+                'singular': False, 'near_singular': r <= self.near_singular_rtol,
+                'sigma_ratio': r, 'center': center[k], 'generators': gen[k]})
+                if r > self.singular_rtol else None)
+        return out
+
     def _friction_rows(self, normals: np.ndarray, mus: np.ndarray) -> np.ndarray:
         """Return the pyramid rows of the stance legs (cached while contacts are unchanged)."""
         key = (normals.tobytes(), mus.tobytes())
@@ -372,32 +460,17 @@ class FeasibilityEvaluator:
             lo, hi = self._limits(stance)
             pp = parallelepipeds(np.array(J), np.array(bias), lo, hi,
                                  singular_rtol=self.singular_rtol)
-            ratio = pp['sigma_ratio'].tolist()
-            center, gen, V, A, b = (pp[key] for key in ('center', 'generators', 'vertices',
-                                                        'A', 'b'))
-            eye, zero = identity(3), np.zeros(3)
-            for k in range(K):
-                if ratio[k] > self.singular_rtol:
-                    meta = {'singular': False,
-                            'near_singular': ratio[k] <= self.near_singular_rtol,
-                            'sigma_ratio': ratio[k], 'center': center[k],
-                            'generators': gen[k]}
-                    out[k] = Polytope(3, V[k], A[k], b[k], zero, eye, meta)
-            if min(ratio) > self.singular_rtol:
+            center, gen, V, A, b, ratio = (pp[key] for key in (
+                'center', 'generators', 'vertices', 'A', 'b', 'sigma_ratio'))
+            out = self._parallelepiped_polytopes(center, gen, V, A, b, ratio)
+            if float(ratio.min()) > self.singular_rtol:
                 stacked, rows = (center, gen), (A, b, V)
         for k, foot in enumerate(stance):
             if out[k] is None:
                 out[k] = force_polytope(J[k], bias[k], self._tau_min[foot],
                                         self._tau_max[foot], singular_rtol=self.singular_rtol,
                                         near_singular_rtol=self.near_singular_rtol)
-            meta = out[k].meta
-            if meta['singular']:
-                warnings.append(f'leg {foot!r} is singular (sigma ratio '
-                                f'{meta["sigma_ratio"]:.2e}); its force polytope is the '
-                                'pseudo-inverse image (flat)')
-            elif meta['near_singular']:
-                warnings.append(f'leg {foot!r} is near-singular (sigma ratio '
-                                f'{meta["sigma_ratio"]:.2e})')
+        _leg_warnings(stance, out, warnings)
         if stacked is None and K and all(F.meta.get('generators', np.zeros(0)).shape == (3, 3)
                                          for F in out):
             stacked = (np.array([F.meta['center'] for F in out]),
@@ -527,6 +600,29 @@ def warm_up(config: RobotConfig | str) -> float:
         except (AwpError, ValueError, np.linalg.LinAlgError):
             pass
     return time.perf_counter() - t0
+
+
+def _leg_warnings(stance: tuple[str, ...], forces: Sequence[Polytope],
+                  warnings: list[str]) -> None:
+    """Append a warning for each singular or near-singular stance leg."""
+    for foot, F in zip(stance, forces):
+        meta = F.meta
+        if meta['singular']:
+            warnings.append(f'leg {foot!r} is singular (sigma ratio '
+                            f'{meta["sigma_ratio"]:.2e}); its force polytope is the '
+                            'pseudo-inverse image (flat)')
+        elif meta['near_singular']:
+            warnings.append(f'leg {foot!r} is near-singular (sigma ratio '
+                            f'{meta["sigma_ratio"]:.2e})')
+
+
+def _friction_warnings(stance: tuple[str, ...], frictions: FrictionPolytopes,
+                       proven: np.ndarray, warnings: list[str]) -> None:
+    """Append a warning for each leg not proven to push whose friction polytope is empty."""
+    for k in () if proven.all() else np.flatnonzero(~proven).tolist():
+        if frictions[k].is_empty:
+            warnings.append(f'leg {stance[k]!r} cannot push on the ground within its torque '
+                            'limits (empty friction-bounded polytope)')
 
 
 def _origin_set() -> Polytope:

@@ -71,7 +71,8 @@ except ImportError:  # pragma: no cover - exercised only on installs without num
 
 __all__ = [
     'ENABLED', 'MAX_BITS', 'batched_vertices', 'certified_solid_faces',
-    'cone_double_description', 'cone_facets', 'cone_recheck', 'cross_products',
+    'cone_double_description', 'cone_facets', 'cone_recheck', 'cross_products', 'cycle_regions',
+    'cycle_sets',
     'first_of_equal_rows', 'flat_cone_facets', 'feasible_region', 'flat_zonotope_facets',
     'leg_vertices', 'lifted_rays', 'lifted_zonotope', 'parallelepipeds', 'polar_hull',
     'polygon_region', 'projected_polygon', 'ratio_test', 'solid_faces', 'slice_facet_normals',
@@ -3032,6 +3033,123 @@ def inside_forces(V: np.ndarray, A: np.ndarray, b: np.ndarray, rows: np.ndarray,
                           np.ascontiguousarray(rows, dtype=float), float(margin))
 
 
+# -- one control cycle's sets and regions, each in one call -----------------------------------
+
+
+@_jit
+def _cycle_sets(J, bias, tau_min, tau_max, singular_rtol, P, rays, ray_certify, subsets,
+                others, zero_tol, certify, rank_tol, incidence_tol, spans, masks, reuse,
+                side_tol, cone_rank_tol, cap, rows, inside_margin):
+    """See :func:`cycle_sets`."""
+    center, G, V, FA, Fb, ratio = _parallelepipeds(J, bias, tau_min, tau_max, singular_rtol)
+    proven = _inside_forces(V, FA, Fb, rows, inside_margin)
+    e6 = np.empty((0, 6))
+    status = 0
+    for k in range(P.shape[0]):
+        if not ratio[k] > singular_rtol:
+            status = 1
+    Aw, bw, c, ok = _lifted_zonotope(P, center, G, subsets, others, zero_tol, certify,
+                                     rank_tol, incidence_tol)
+    if status == 0 and not ok:
+        status = 2
+    lifted, full = _lifted_rays(P, rays, ray_certify)
+    Ac, reused = e6, False
+    if status == 0 and not full:
+        status = 3
+    if status == 0 and reuse:
+        Ac, reused = _cone_recheck(lifted, spans, masks, side_tol, cone_rank_tol)
+    if status == 0 and not reused:
+        Ac, spans, masks, ok = _cone_dd(lifted, side_tol, cone_rank_tol, cap)
+        if not ok:
+            status = 4
+    m1, m2 = Aw.shape[0], Ac.shape[0]
+    Af = np.empty((m1 + m2, 6))
+    bf = np.zeros(m1 + m2)
+    Af[:m1] = Aw
+    Af[m1:] = Ac
+    bf[:m1] = bw
+    return (status, (center, G, V, FA, Fb, ratio), proven, (Aw, bw, c), (lifted, Ac, spans, masks,
+            reused), (Af, bf))
+
+
+def cycle_sets(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray, tau_max: np.ndarray,
+               singular_rtol: float, positions: np.ndarray, rays: np.ndarray,
+               ray_certify: float, subsets: np.ndarray, others: np.ndarray, zero_tol: float,
+               certify: float, rank_tol: float, incidence_tol: float,
+               last: tuple[np.ndarray, np.ndarray] | None, side_tol: float,
+               cone_rank_tol: float, rows: np.ndarray, inside_margin: float) -> tuple:
+    r"""
+    Return a control cycle's wrench sets of K >= 3 three-joint legs in one compiled call.
+
+    The kernels of the per-cycle stages, called in their order without Python between them:
+    :func:`parallelepipeds` (``J`` (K, 3, 3), ``bias``, ``tau_min``, ``tau_max`` (K, 3)),
+    :func:`inside_forces` (the pyramid ``rows`` (K, N + 1, 3), ``inside_margin`` [N]),
+    :func:`lifted_zonotope` (the AWP: feet ``positions`` (K, 3) [m], ``subsets`` and
+    ``others`` of the 3K generators, the zonotope tolerances), :func:`lifted_rays` (the
+    pyramids' ``rays`` (K, N, 3), ``ray_certify``), then the CWC's facets by
+    :func:`cone_recheck` of the ``last`` cone's ``(spans, masks)`` when given, else (or when
+    it fails) by :func:`cone_double_description`; and the FWP's rows ``[A_awp; A_cwc]``,
+    ``[b_awp; 0]`` (:func:`awp_ros.wrench.wrench_polytope.feasible_wrench_polytope`'s order).
+    Each result is the kernel's own, bit for bit.
+
+    :return: ``(status, legs, proven, awp, cwc, fwp)``: ``legs`` the parallelepipeds'
+        ``(center, generators, vertices, A, b, sigma_ratio)``; ``proven`` (K,) bool;
+        ``awp`` ``(A, b, c)``; ``cwc`` ``(lifted rays, A, spans, masks, reused)``; ``fwp``
+        ``(A, b)``. ``status`` 0 when all hold, else the first that failed: 1 a leg at or
+        below ``singular_rtol``, 2 the AWP not certified full-dimensional, 3 the rays not
+        full rank, 4 the double description failed (the later results are then empty or
+        partial: the caller takes the general code).
+    """
+    spans, masks = last if last is not None else (np.zeros((0, 5), dtype=np.int64),
+                                                  np.zeros(0, dtype=np.int64))
+    return _cycle_sets(np.ascontiguousarray(J, dtype=float),
+                       np.ascontiguousarray(bias, dtype=float),
+                       np.ascontiguousarray(tau_min, dtype=float),
+                       np.ascontiguousarray(tau_max, dtype=float), float(singular_rtol),
+                       np.ascontiguousarray(positions, dtype=float),
+                       np.ascontiguousarray(rays, dtype=float), float(ray_certify),
+                       np.ascontiguousarray(subsets, dtype=np.int64),
+                       np.ascontiguousarray(others, dtype=np.int64), float(zero_tol),
+                       float(certify), float(rank_tol), float(incidence_tol),
+                       np.ascontiguousarray(spans, dtype=np.int64),
+                       np.ascontiguousarray(masks, dtype=np.int64), last is not None,
+                       float(side_tol), float(cone_rank_tol), 1024,
+                       np.ascontiguousarray(rows, dtype=float), float(inside_margin))
+
+
+@_jit
+def _cycle_regions(cwc_A, fwp_A, fwp_b, force_A, force_b, rows, P, w, tol, parallel, h_min,
+                   max_lps):
+    """See :func:`cycle_regions`."""
+    support = _wrench_slice(cwc_A, np.zeros(cwc_A.shape[0]), w, tol, parallel, h_min)
+    feasible = _feasible_region(force_A, force_b, rows, P, w, tol, max_lps)
+    fwp = _wrench_slice(fwp_A, fwp_b, w, tol, parallel, h_min)
+    return support, feasible, fwp
+
+
+def cycle_regions(cwc_A: np.ndarray, fwp_A: np.ndarray, fwp_b: np.ndarray,
+                  force_A: np.ndarray, force_b: np.ndarray, rows: np.ndarray,
+                  positions: np.ndarray, wrench: np.ndarray, tol: float, parallel: float,
+                  h_min: float, max_lps: int = 400) -> tuple:
+    """
+    Return a control cycle's three CoM regions' kernels in one compiled call.
+
+    :func:`wrench_slice` of the CWC (``cwc_A``, ``b = 0``), :func:`feasible_region` of the
+    legs (``force_A`` (K, 6, 3), ``force_b``, the pyramid ``rows``, the feet ``positions``)
+    and :func:`wrench_slice` of the FWP (``fwp_A``, ``fwp_b``), at ``wrench`` [N, N.m], in
+    this order: ``(support, feasible, fwp)``, each the kernel's own result.
+    """
+    return _cycle_regions(np.ascontiguousarray(cwc_A, dtype=float),
+                          np.ascontiguousarray(fwp_A, dtype=float),
+                          np.ascontiguousarray(fwp_b, dtype=float),
+                          np.ascontiguousarray(force_A, dtype=float),
+                          np.ascontiguousarray(force_b, dtype=float),
+                          np.ascontiguousarray(rows, dtype=float),
+                          np.ascontiguousarray(positions, dtype=float),
+                          np.ascontiguousarray(wrench, dtype=float), float(tol),
+                          float(parallel), float(h_min), int(max_lps))
+
+
 @_jit(fastmath=True)
 def _ratio_test(A, b, w, D, feasibility_tol, parallel_tol, t_hi, t_lo, empty):
     """Run the ratio test, a branch-free pass over the rows per direction (:func:`ratio_test`)."""
@@ -3138,6 +3256,19 @@ def compile_all() -> None:
     first_of_equal_rows(g, 10)
     ratio_test(g.T, np.ones(8), np.zeros(6), np.eye(6), 1e-6, 1e-9)
     inside_forces(cube[None], box[None], np.ones((1, 6)), -box[None, :3], 1e-6)
+    # The per-cycle calls, with read-only tables and rays as the evaluator passes them.
+    S9 = np.array(list(combinations(range(9), 5)), dtype=np.int64)
+    O9 = subset_complements(S9, 9)
+    rays3 = rng.normal(size=(3, 4, 3))
+    for table in (S9, O9, rays3):
+        table.setflags(write=False)
+    J3, P3 = rng.normal(size=(3, 3, 3)), rng.normal(size=(3, 3))
+    rows3 = -box[None, :4].repeat(3, 0)
+    for last in (None, (np.zeros((1, 5), dtype=np.int64), np.zeros(1, dtype=np.int64))):
+        sets = cycle_sets(J3, g[:3, :3], -np.ones((3, 3)), np.ones((3, 3)), 1e-9, P3, rays3,
+                          1e-10, S9, O9, 1e-12, 1e-10, 1e-9, 1e-9, last, 1e-9, 1e-9, rows3, 1e-6)
+    cycle_regions(sets[4][1], sets[5][0], sets[5][1], sets[1][3], sets[1][4], rows3, P3,
+                  np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1e-9, 1e-12, 0.0)
     batched_vertices(box[None], np.ones((1, 6)), np.array([[0, 1, 2]]), np.ones(1), 1e-12)
     groups = {d: (rng.normal(size=(2, 2, d, 3)), rng.normal(size=(2, 2, 2, 2, 3)),
                   np.ones((2, 2, 2), dtype=bool), np.full(2, 2)) for d in (1, 2, 3)}

@@ -101,7 +101,8 @@ from awp_ros.geometry import kernels
 from awp_ros.geometry.polytope import Polytope
 
 __all__ = ['ComRegion', 'com_region', 'com_wrench_map', 'feasible_region',
-           'feasible_region_of_rows']
+           'feasible_region_of_rows', 'feasible_region_of_kernel', 'EDGE_PARALLEL_TOL',
+           'region_of_slice', 'slice_floor']
 
 
 @dataclass(frozen=True)
@@ -214,13 +215,15 @@ def com_region(polytope: Polytope, force: np.ndarray, moment: np.ndarray, *,
     rank = 0
     r = P.hull_basis.shape[1]
     if r == 6 and kernels.ENABLED:       # steps (4)-(7) compiled, when (5)'s fast path holds
-        A, b, V, margin, status = kernels.wrench_slice(
-            P.A, P.b, np.array((fx, fy, fz, Lx, Ly, Lz)), distance_tol, _PARALLEL,
-            max(wrench_tol, const_tol * search_radius))
-        if status == 2:
+        sliced = kernels.wrench_slice(
+            P.A, P.b, np.array((fx, fy, fz, Lx, Ly, Lz)), distance_tol, EDGE_PARALLEL_TOL,
+            slice_floor(fx, fy, fz, row_tol=row_tol, wrench_tol=wrench_tol,
+                        search_radius=search_radius))
+        if sliced[4] == 2:
             raise InputError(_UNBOUNDED)
-        if status == 0 and margin >= _CENTRED * distance_tol:
-            return ComRegion(2, V, A, b, margin, {'rows': rows, 'interior_point': np.zeros(2)})
+        region = region_of_slice(P, sliced, distance_tol=distance_tol)
+        if region is not None:
+            return region
     if r == 5:                           # two stance legs: one equality, in scalars
         (E0, E1, E2, E3, E4, E5), = P.equalities[0].tolist()
         gx, gy = fy * E5 - fz * E4, fz * E3 - fx * E5          # G = E D
@@ -274,6 +277,33 @@ def com_region(polytope: Polytope, force: np.ndarray, moment: np.ndarray, *,
             return region
     return _general(N2, h, rows, const_tol=const_tol, wrench_tol=wrench_tol,
                     distance_tol=distance_tol, search_radius=search_radius)
+
+
+def slice_floor(fx: float, fy: float, fz: float, *, row_tol: float = 1e-9,
+                wrench_tol: float = 1e-6, search_radius: float = 100.0) -> float:
+    """
+    Return the least slack [N, N.m] of every row at the current CoM for step (5)'s fast path.
+
+    ``max(wrench_tol, row_tol |f| search_radius)`` (:func:`com_region`'s tolerances, defaults
+    included): above it, constant rows are redundant and the current CoM is inside.
+    """
+    return max(wrench_tol, row_tol * math.sqrt(fx * fx + fy * fy + fz * fz) * search_radius)
+
+
+def region_of_slice(P: Polytope, sliced: tuple, *, distance_tol: float = 1e-9
+                    ) -> ComRegion | None:
+    """
+    Return the polygon of :func:`awp_ros.geometry.kernels.wrench_slice`'s result on ``P``.
+
+    None when the kernel's fast path does not hold (status not 0, or the current CoM closer
+    to an edge than ``_CENTRED`` tolerances): :func:`com_region` then decides (its general
+    steps, or the unbounded region's error).
+    """
+    A, b, V, margin, status = sliced
+    if status == 0 and margin >= _CENTRED * distance_tol:
+        return ComRegion(2, V, A, b, margin, {'rows': int(P.A.shape[0]),
+                                              'interior_point': np.zeros(2)})
+    return None
 
 
 # -- the feasible region by projection (every cycle, no FWS H-rep) --------------------------
@@ -337,8 +367,18 @@ def feasible_region_of_rows(positions: np.ndarray, force_A: np.ndarray, force_b:
     """
     if not kernels.ENABLED or abs(wrench[2]) <= 1e-6:
         return None
-    V, A, b, margin, status = kernels.feasible_region(force_A, force_b, friction_rows,
-                                                      positions, wrench, distance_tol)
+    return feasible_region_of_kernel(kernels.feasible_region(
+        force_A, force_b, friction_rows, positions, wrench, distance_tol), distance_tol)
+
+
+def feasible_region_of_kernel(out: tuple, distance_tol: float = 1e-9) -> ComRegion | None:
+    """
+    Return the region of :func:`awp_ros.geometry.kernels.feasible_region`'s ``out``.
+
+    ``(V, A, b, margin, status)``: empty (status 1), None (it failed), a point, a segment or
+    the polygon, as :func:`feasible_region_of_rows` returns them.
+    """
+    V, A, b, margin, status = out
     if status == 1:
         return _empty(0)
     if status != 0:
@@ -395,7 +435,7 @@ def _slice_polygon(N2: np.ndarray, h: np.ndarray, x0: np.ndarray | None, tol: fl
     kernels are enabled, else :func:`_polar` and :func:`_polygon` (the numpy reference).
     """
     if kernels.ENABLED:
-        out = kernels.polygon_region(N2, h, x0, tol, _PARALLEL)
+        out = kernels.polygon_region(N2, h, x0, tol, EDGE_PARALLEL_TOL)
         if out is None:
             raise InputError(_UNBOUNDED)
         A, b, V, margin = out
@@ -548,7 +588,7 @@ def _polygon(N2: np.ndarray, h: np.ndarray, chain: np.ndarray, V: np.ndarray,
             break
         short = length <= tol
         Ap, An = A[_shift(k, -1)], A[_shift(k, 1)]
-        short &= Ap[:, 0] * An[:, 1] - Ap[:, 1] * An[:, 0] > _PARALLEL
+        short &= Ap[:, 0] * An[:, 1] - Ap[:, 1] * An[:, 0] > EDGE_PARALLEL_TOL
         drop = short & ~short[_shift(k, -1)] if not short.all() else np.arange(k) == 0
         if not drop.any():
             break
@@ -566,7 +606,8 @@ def _polygon(N2: np.ndarray, h: np.ndarray, chain: np.ndarray, V: np.ndarray,
                      {'rows': rows, 'interior_point': interior})
 
 
-_PARALLEL = 1e-12  # sin of the angle under which two edge normals count as parallel
+#: sin of the angle under which two edge normals of a region count as parallel.
+EDGE_PARALLEL_TOL = 1e-12
 
 
 def _distance_to_polygon(V: np.ndarray) -> float:

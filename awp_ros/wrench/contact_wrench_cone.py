@@ -52,8 +52,9 @@ from awp_ros.wrench.wrench_polytope import lift_points
 #: rays (K, N, 3) -> (K, N, 6)); :func:`awp_ros.wrench.wrench_polytope.lift_points`.
 lift_rays = lift_points
 
-__all__ = ['contact_wrench_cone', 'contact_wrench_cone_unchecked', 'friction_pyramid',
-           'friction_pyramids', 'lift_rays', 'reset_reuse', 'reuse_counts']
+__all__ = ['cone_polytope', 'contact_wrench_cone', 'contact_wrench_cone_unchecked',
+           'facets_key', 'friction_pyramid', 'friction_pyramids', 'last_facets', 'lift_rays',
+           'pyramid_rays', 'record_facets', 'reset_reuse', 'reuse_counts']
 
 
 def friction_pyramid(normal: np.ndarray, mu: float, sides: int = 4, *,
@@ -213,7 +214,7 @@ def contact_wrench_cone_unchecked(P: np.ndarray, N_: np.ndarray, mu: np.ndarray,
     if K == 0:
         return Polytope(0, np.zeros((1, 6)), np.zeros((0, 6)), np.zeros(0), origin,
                         np.zeros((6, 0)), {'kind': 'cone', 'rays': np.zeros((0, 6))})
-    rays = _cached_rays(np.ascontiguousarray(N_).tobytes(), mu.tobytes(), sides)
+    rays = pyramid_rays(N_, mu, sides)
     full = False
     if kernels.ENABLED and K >= 2 and K * sides <= kernels.MAX_BITS:
         lifted, full = kernels.lifted_rays(P, rays, max(span_tol ** 2, GRAM_CERTIFY))
@@ -227,20 +228,35 @@ def contact_wrench_cone_unchecked(P: np.ndarray, N_: np.ndarray, mu: np.ndarray,
         normal, U = pair
     elif U is None:
         U = orthonormal_span(lifted, rtol=span_tol)
-    meta = {'kind': 'cone', 'rays': lifted}
     r = U.shape[1]
     rh = lifted if r == 6 else lifted @ U                               # (K N, r)
     subsets, tree = _candidates(K, sides, r, frictionless)
     if kernels.ENABLED and r == 6 and rh.shape[0] <= kernels.MAX_BITS:
-        A = _kernel_facets(rh, subsets, (K, sides, r, rays.tobytes()), side_tol, rank_tol)
+        A = _kernel_facets(rh, subsets, facets_key(rays, r), side_tol, rank_tol)
     elif kernels.ENABLED and 3 <= r < 6 and rh.shape[0] <= kernels.MAX_BITS:
         A = kernels.flat_cone_facets(rh, subsets, side_tol, rank_tol)
     else:
         A = _facets(rh, tree, r, side_tol, rank_tol)
     if r < 6:
         A = A @ U.T
-    cone = Polytope(r, np.zeros((0, 6)), A, np.zeros(A.shape[0]), origin, U, meta)
+    cone = cone_polytope(A, lifted, U)
     return cone if pair is None else cone.with_hyperplane(normal)
+
+
+def cone_polytope(A: np.ndarray, lifted: np.ndarray, U: np.ndarray) -> Polytope:
+    """Return the CWC of facet rows ``A`` (k, 6), unit ``lifted`` rays and hull basis ``U``."""
+    return Polytope(U.shape[1], np.zeros((0, 6)), A, np.zeros(A.shape[0]), np.zeros(6), U,
+                    {'kind': 'cone', 'rays': lifted})
+
+
+def pyramid_rays(normals: np.ndarray, mu: np.ndarray, sides: int) -> np.ndarray:
+    """Return the pyramids' rays ``(K, sides, 3)`` of unit ``normals`` (K, 3), ``mu`` (K,)."""
+    return _cached_rays(np.ascontiguousarray(normals).tobytes(), mu.tobytes(), sides)
+
+
+def facets_key(rays: np.ndarray, r: int) -> tuple:
+    """Return what fixes a cone's candidates and pyramids: stance, sides, rank, the rays."""
+    return rays.shape[0], rays.shape[1], r, rays.tobytes()
 
 
 def _pair_basis(P: np.ndarray, lifted: np.ndarray,
@@ -275,21 +291,35 @@ def _kernel_facets(rh: np.ndarray, subsets: np.ndarray, key: tuple, side_tol: fl
     the candidates and the pyramids (stance count, sides, dimension, the unlifted rays).
     One entry per thread.
     """
-    last = getattr(_LAST, 'facets', None)
-    if last is not None and last[0] == key:
-        A = kernels.cone_recheck(rh, last[1], last[2], side_tol, rank_tol)
+    last = last_facets(key)
+    if last is not None:
+        A = kernels.cone_recheck(rh, *last, side_tol, rank_tol)
         if A is not None:
-            _LAST.reused = getattr(_LAST, 'reused', 0) + 1
+            record_facets(key, *last, reused=True)
             return A
     found = kernels.cone_double_description(rh, side_tol, rank_tol)
     A, spans, masks = found if found is not None else \
         kernels.cone_facets(rh, subsets, side_tol, rank_tol)
-    _LAST.facets = (key, spans, masks)
-    _LAST.searched = getattr(_LAST, 'searched', 0) + 1
+    record_facets(key, spans, masks, reused=False)
     return A
 
 
 _LAST = threading.local()
+
+
+def last_facets(key: tuple) -> tuple[np.ndarray, np.ndarray] | None:
+    """Return this thread's last cone's ``(spans, masks)`` when found for ``key``, else None."""
+    last = getattr(_LAST, 'facets', None)
+    return (last[1], last[2]) if last is not None and last[0] == key else None
+
+
+def record_facets(key: tuple, spans: np.ndarray, masks: np.ndarray, *, reused: bool) -> None:
+    """Count a reuse of the last facets, or keep new ones (``spans``, ``masks``) for ``key``."""
+    if reused:
+        _LAST.reused = getattr(_LAST, 'reused', 0) + 1
+    else:
+        _LAST.facets = (key, spans, masks)
+        _LAST.searched = getattr(_LAST, 'searched', 0) + 1
 
 
 def reset_reuse() -> None:

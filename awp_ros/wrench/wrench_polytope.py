@@ -30,7 +30,7 @@ from awp_ros.geometry.polytope import Polytope
 from awp_ros.geometry.zonotope import facet_complements, facet_subsets, zonotope, ZONOTOPE_TOLS
 
 __all__ = ['actuation_wrench_polytope', 'feasible_wrench_polytope', 'lift', 'lift_matrices',
-           'lift_points', 'awp_zonotope']
+           'lift_points', 'awp_zonotope', 'zonotope_awp']
 
 
 def lift(p: np.ndarray) -> np.ndarray:
@@ -115,9 +115,7 @@ def awp_zonotope(P: np.ndarray, C: np.ndarray, H: np.ndarray, *,
                                         tol['rank_tol'], tol['incidence_tol'],
                                         others=facet_complements(3 * K))
         if fused is not None:       # full-dimensional (else the general code decides)
-            A, b, c = fused
-            return Polytope(6, np.zeros((0, 6)), A, b, c, identity(6),
-                            {'kind': 'zonotope', 'generators': 3 * K})
+            return zonotope_awp(*fused, 3 * K)
     if kernels.ENABLED and K == 2 and not with_vertices:      # a hyperplane of R^6
         fused = kernels.lifted_zonotope_pair(P, C, H, facet_subsets(6, 4), tol['zero_tol'],
                                              max(tol['span_tol'] ** 2, GRAM_CERTIFY),
@@ -134,8 +132,15 @@ def awp_zonotope(P: np.ndarray, C: np.ndarray, H: np.ndarray, *,
     return zonotope(center, G, with_vertices=with_vertices, **zonotope_tols)
 
 
+def zonotope_awp(A: np.ndarray, b: np.ndarray, c: np.ndarray, generators: int) -> Polytope:
+    """Return the full-dimensional AWP of its zonotope rows ``A``, ``b`` and centre ``c``."""
+    return Polytope(6, np.zeros((0, 6)), A, b, c, identity(6),
+                    {'kind': 'zonotope', 'generators': generators})
+
+
 def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 1e-9,
-                             interior_tol: float = 1e-9) -> Polytope:
+                             interior_tol: float = 1e-9,
+                             stacked: tuple[np.ndarray, np.ndarray] | None = None) -> Polytope:
     r"""
     Return the FWP = AWP cap CWC as a stacked H-rep in the common affine hull, eq. (3).
 
@@ -155,6 +160,8 @@ def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 
     :param cwc: the CWC (``b = 0``, a cone).
     :param hull_tol: distance under which the two hulls coincide / a point is in a hull.
     :param interior_tol: inscribed-ball radius [N, N.m] under which the set is degenerate.
+    :param stacked: ``([A_awp; A_cwc], [b_awp; b_cwc])`` when the caller has them stacked
+        already (:func:`awp_ros.geometry.kernels.cycle_sets`); used when the hulls coincide.
     :return: the FWP; ``meta['source']`` is 0 for rows from the AWP, 1 from the CWC;
         ``meta['kind'] = 'intersection'``. Vertices are not enumerated.
     """
@@ -173,8 +180,8 @@ def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 
         A2, b2 = _restrict(cwc, origin, U, hull_tol)
         if A1 is None or A2 is None:
             return Polytope.empty(n)
-    A = np.concatenate((A1, A2))
-    b = np.concatenate((b1, b2))
+    A, b = stacked if same and stacked is not None else \
+        (np.concatenate((A1, A2)), np.concatenate((b1, b2)))
     source = np.ones(b.size, dtype=np.int8)
     source[:A1.shape[0]] = 0
     meta = {'kind': 'intersection', 'source': source, 'degenerate': False}

@@ -92,7 +92,7 @@ def test_counts_match_the_bag_and_timings_nest_within_the_wall_time(trot):
     # mean is >= 0 and their sum (with the FWS) cannot exceed the wall time containing it.
     stage_means = [out[f'{s}_ms'] for s in STAGES]
     assert all(v >= 0.0 for v in stage_means)
-    for s in ('model', 'force_polytopes', 'awp', 'cwc_fwp', 'margins'):
+    for s in ('model', 'sets', 'margins', 'regions'):
         assert out[f'{s}_ms'] > 0.0, s                   # real work in every cycle
     assert out['fws_amortised_ms'] > 0.0
     assert sum(stage_means) + out['fws_amortised_ms'] <= out['mean_ms']
