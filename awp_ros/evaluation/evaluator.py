@@ -186,7 +186,7 @@ class FeasibilityEvaluator:
         fused = self._cycle_sets(s, kin, warnings)
         forces, frictions, force_rows, awp, cwc, fwp = fused if fused is not None else \
             self._sets(s, kin, warnings)
-        t6 = clock()
+        t3 = clock()
         tol = self.feasibility_tol
         awp_r = WrenchSetResult.from_margin('awp', awp, polytope_margin(
             awp, w, feasibility_tol=tol, hull_tol=self.hull_tol))
@@ -203,7 +203,7 @@ class FeasibilityEvaluator:
                                 partial(frictions.__getitem__, k), forces[k].meta['singular'],
                                 forces[k].meta['near_singular'])
                 for k, foot in enumerate(s.stance)}
-        t7 = clock()
+        t4 = clock()
         # With the sets of one compiled call, the regions' kernels in one more (when a
         # vertical force defines them); each region the general code's when the kernel's
         # fast path does not hold.
@@ -222,17 +222,17 @@ class FeasibilityEvaluator:
         else:
             feasible = feasible_region(p, forces, self._friction_rows(s.normals, s.mus),
                                        w[:3], w[3:]) if s.stance else None
-        t8 = clock()
+        t5 = clock()
         fwp_r.region = sliced and region_of_slice(fwp, sliced[2])
         if fwp_r.region is None:
             fwp_r.region = _region(fwp, w, 'FWP region', warnings)
         capture = _capture_point(vcom, p, self._gravity)
         fwp_r.capture_point_margin = _point_margin(fwp_r.region, capture)
-        t9 = clock()
+        t6 = clock()
         timings = {'validate': 1e3 * (t1 - t0), 'model': 1e3 * (t2 - t1),
-                   'sets': 1e3 * (t6 - t2), 'margins': 1e3 * (t7 - t6),
-                   'regions': 1e3 * (t9 - t7),
-                   'com_regions': 1e3 * (t8 - t7), 'total': 1e3 * (t9 - t0)}
+                   'sets': 1e3 * (t3 - t2), 'margins': 1e3 * (t4 - t3),
+                   'regions': 1e3 * (t6 - t4),
+                   'com_regions': 1e3 * (t5 - t4), 'total': 1e3 * (t6 - t0)}
         result = FeasibilityResult(cfg.robot_name, s.stance, kin.mass, kin.com, w, legs,
                                    awp_r, fwp_r, None, warnings, timings,
                                    'quasi_static' if s.a is None else 'measured',
