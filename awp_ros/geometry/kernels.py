@@ -3085,7 +3085,8 @@ def cycle_sets(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray, tau_max: np
     :func:`parallelepipeds` (``J`` (K, 3, 3), ``bias``, ``tau_min``, ``tau_max`` (K, 3)),
     :func:`inside_forces` (the pyramid ``rows`` (K, N + 1, 3), ``inside_margin`` [N]),
     :func:`lifted_zonotope` (the AWP: feet ``positions`` (K, 3) [m], ``subsets`` and
-    ``others`` of the 3K generators, the zonotope tolerances), :func:`lifted_rays` (the
+    ``others`` of the 3K generators as :func:`lifted_zonotope` takes them, the zonotope
+    tolerances), :func:`lifted_rays` (the
     pyramids' ``rays`` (K, N, 3), ``ray_certify``), then the CWC's facets by
     :func:`cone_recheck` of the ``last`` cone's ``(spans, masks)`` when given, else (or when
     it fails) by :func:`cone_double_description`; and the FWP's rows ``[A_awp; A_cwc]``,
@@ -3109,7 +3110,7 @@ def cycle_sets(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray, tau_max: np
                        np.ascontiguousarray(positions, dtype=float),
                        np.ascontiguousarray(rays, dtype=float), float(ray_certify),
                        np.ascontiguousarray(subsets, dtype=np.int64),
-                       np.ascontiguousarray(others, dtype=np.int64), float(zero_tol),
+                       _complements(subsets, 3 * len(positions), others), float(zero_tol),
                        float(certify), float(rank_tol), float(incidence_tol),
                        np.ascontiguousarray(spans, dtype=np.int64),
                        np.ascontiguousarray(masks, dtype=np.int64), last is not None,
