@@ -69,32 +69,24 @@ from awp_ros.geometry.zonotope import facet_complements, facet_subsets, ZONOTOPE
 from awp_ros.robot.config import load_config, RobotConfig
 from awp_ros.robot.model import RobotModel
 from awp_ros.robot.state import resolve_state, ResolvedState, RobotState
-from awp_ros.wrench.com_region import (com_region, ComRegion, EDGE_PARALLEL_TOL,
+from awp_ros.wrench.com_region import (com_region, ComRegion, DISTANCE_TOL, EDGE_PARALLEL_TOL,
                                        feasible_region, feasible_region_of_kernel,
-                                       feasible_region_of_rows, region_of_slice, slice_floor)
+                                       feasible_region_of_rows, region_of_slice, slice_floor,
+                                       VERTICAL_FORCE_TOL)
 from awp_ros.wrench.contact_forces import measured_contact_forces
-from awp_ros.wrench.contact_wrench_cone import (cone_polytope, contact_wrench_cone_unchecked,
-                                                facets_key, last_facets, pyramid_rays,
-                                                record_facets)
+from awp_ros.wrench.contact_wrench_cone import (cone_polytope, CONE_TOL,
+                                                contact_wrench_cone_unchecked, facets_key,
+                                                last_facets, pyramid_rays, record_facets)
 from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set_steps, minkowski_sum_of_lifts
 from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
-from awp_ros.wrench.friction_polytope import friction_rows, FrictionPolytopes, inside_force
+from awp_ros.wrench.friction_polytope import (friction_rows, FrictionPolytopes, inside_force,
+                                              INSIDE_MARGIN)
 from awp_ros.wrench.wrench_polytope import awp_zonotope, feasible_wrench_polytope, zonotope_awp
 
 __all__ = ['compute_fws', 'compute_fws_steps', 'FeasibilityEvaluator', 'STAGES', 'warm_up']
 
 #: The per-cycle stages of :meth:`FeasibilityEvaluator.evaluate`, in order.
 STAGES = ('validate', 'model', 'sets', 'margins', 'regions')
-
-#: The tolerances of the compiled per-cycle calls, those of the stage-by-stage code's defaults:
-#: the cone's (``contact_wrench_cone``: span, side and rank), the friction proof's margin [N]
-#: (``inside_force``), a frictionless contact, the CoM regions' [m] and parallel edges, the
-#: least vertical force of a region [N] (``com_region``).
-_CONE_TOL = 1e-9
-_INSIDE_MARGIN = 1e-6
-_FRICTIONLESS_TOL = 1e-9
-_DISTANCE_TOL = 1e-9
-_VERTICAL_FORCE_TOL = 1e-6
 
 
 class FeasibilityEvaluator:
@@ -209,8 +201,8 @@ class FeasibilityEvaluator:
         # fast path does not hold.
         sliced = kernels.cycle_regions(
             cwc.A, fwp.A, fwp.b, *force_rows[:2], self._friction_rows(s.normals, s.mus), p, w,
-            _DISTANCE_TOL, EDGE_PARALLEL_TOL, slice_floor(*w[:3].tolist())) \
-            if fused is not None and abs(w[2]) > _VERTICAL_FORCE_TOL else None
+            DISTANCE_TOL, EDGE_PARALLEL_TOL, slice_floor(*w[:3].tolist())) \
+            if fused is not None and abs(w[2]) > VERTICAL_FORCE_TOL else None
         support = sliced and region_of_slice(cwc, sliced[0])
         if support is None:
             support = _region(cwc, w, 'support region', warnings)
@@ -394,7 +386,7 @@ class FeasibilityEvaluator:
         """
         K, sides = len(s.stance), self.config.pyramid_sides
         if not (kernels.ENABLED and self._three_joint and 3 <= K <= kernels.MAX_BITS // 3
-                and K * sides <= kernels.MAX_BITS and float(s.mus.min()) > _FRICTIONLESS_TOL):
+                and K * sides <= kernels.MAX_BITS and float(s.mus.min()) > CONE_TOL):
             return None
         p = kin.p_foot__com
         rows = self._friction_rows(s.normals, s.mus)
@@ -405,9 +397,9 @@ class FeasibilityEvaluator:
         tol = ZONOTOPE_TOLS
         status, legs, proven, awp, cone, stacked = kernels.cycle_sets(
             np.array(kin.J), np.array(kin.bias), lo, hi, self.singular_rtol, p, rays,
-            max(_CONE_TOL ** 2, GRAM_CERTIFY), facet_subsets(3 * K), facet_complements(3 * K),
+            max(CONE_TOL ** 2, GRAM_CERTIFY), facet_subsets(3 * K), facet_complements(3 * K),
             tol['zero_tol'], max(tol['span_tol'] ** 2, GRAM_CERTIFY), tol['rank_tol'],
-            tol['incidence_tol'], last, _CONE_TOL, _CONE_TOL, rows, _INSIDE_MARGIN)
+            tol['incidence_tol'], last, CONE_TOL, CONE_TOL, rows, INSIDE_MARGIN)
         if status != 0:
             return None
         lifted, cone_A, spans, masks, reused = cone

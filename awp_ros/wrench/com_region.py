@@ -102,7 +102,12 @@ from awp_ros.geometry.polytope import Polytope
 
 __all__ = ['ComRegion', 'com_region', 'com_wrench_map', 'feasible_region',
            'feasible_region_of_rows', 'feasible_region_of_kernel', 'EDGE_PARALLEL_TOL',
-           'region_of_slice', 'slice_floor']
+           'region_of_slice', 'slice_floor', 'DISTANCE_TOL', 'VERTICAL_FORCE_TOL']
+
+#: Default geometric tolerance of the CoM regions [m] (``distance_tol``).
+DISTANCE_TOL = 1e-9
+#: Default least ``|f_z|`` [N] for which a CoM region is computed (``vertical_force_tol``).
+VERTICAL_FORCE_TOL = 1e-6
 
 
 @dataclass(frozen=True)
@@ -167,8 +172,9 @@ def com_wrench_map(force: np.ndarray, moment: np.ndarray) -> tuple[np.ndarray, n
 
 
 def com_region(polytope: Polytope, force: np.ndarray, moment: np.ndarray, *,
-               distance_tol: float = 1e-9, wrench_tol: float = 1e-6, row_tol: float = 1e-9,
-               vertical_force_tol: float = 1e-6, search_radius: float = 100.0) -> ComRegion:
+               distance_tol: float = DISTANCE_TOL, wrench_tol: float = 1e-6,
+               row_tol: float = 1e-9, vertical_force_tol: float = VERTICAL_FORCE_TOL,
+               search_radius: float = 100.0) -> ComRegion:
     r"""
     Return the exact CoM region of a wrench set, eq. (2).
 
@@ -290,7 +296,7 @@ def slice_floor(fx: float, fy: float, fz: float, *, row_tol: float = 1e-9,
     return max(wrench_tol, row_tol * math.sqrt(fx * fx + fy * fy + fz * fz) * search_radius)
 
 
-def region_of_slice(P: Polytope, sliced: tuple, *, distance_tol: float = 1e-9
+def region_of_slice(P: Polytope, sliced: tuple, *, distance_tol: float = DISTANCE_TOL
                     ) -> ComRegion | None:
     """
     Return the polygon of :func:`awp_ros.geometry.kernels.wrench_slice`'s result on ``P``.
@@ -311,7 +317,7 @@ def region_of_slice(P: Polytope, sliced: tuple, *, distance_tol: float = 1e-9
 
 def feasible_region(positions: np.ndarray, force_polytopes: Sequence[Polytope],
                     friction_rows: np.ndarray, force: np.ndarray, moment: np.ndarray, *,
-                    distance_tol: float = 1e-9) -> ComRegion | None:
+                    distance_tol: float = DISTANCE_TOL) -> ComRegion | None:
     r"""
     Return the exact feasible region without the FWS's H-rep, by iterative projection.
 
@@ -356,7 +362,7 @@ def feasible_region(positions: np.ndarray, force_polytopes: Sequence[Polytope],
 
 def feasible_region_of_rows(positions: np.ndarray, force_A: np.ndarray, force_b: np.ndarray,
                             friction_rows: np.ndarray, wrench: np.ndarray, *,
-                            distance_tol: float = 1e-9) -> ComRegion | None:
+                            distance_tol: float = DISTANCE_TOL) -> ComRegion | None:
     """
     Return :func:`feasible_region` from the legs' stacked H-reps, unchecked (a hot path).
 
@@ -365,13 +371,14 @@ def feasible_region_of_rows(positions: np.ndarray, force_A: np.ndarray, force_b:
         the rest as :func:`feasible_region`, whose None cases the caller has excluded
         but these two: kernels off, ``|f_z| <= 1e-6`` N.
     """
-    if not kernels.ENABLED or abs(wrench[2]) <= 1e-6:
+    if not kernels.ENABLED or abs(wrench[2]) <= VERTICAL_FORCE_TOL:
         return None
     return feasible_region_of_kernel(kernels.feasible_region(
         force_A, force_b, friction_rows, positions, wrench, distance_tol), distance_tol)
 
 
-def feasible_region_of_kernel(out: tuple, distance_tol: float = 1e-9) -> ComRegion | None:
+def feasible_region_of_kernel(out: tuple, distance_tol: float = DISTANCE_TOL
+                              ) -> ComRegion | None:
     """
     Return the region of :func:`awp_ros.geometry.kernels.feasible_region`'s ``out``.
 

@@ -54,7 +54,10 @@ lift_rays = lift_points
 
 __all__ = ['cone_polytope', 'contact_wrench_cone', 'contact_wrench_cone_unchecked',
            'facets_key', 'friction_pyramid', 'friction_pyramids', 'last_facets', 'lift_rays',
-           'pyramid_rays', 'record_facets', 'reset_reuse', 'reuse_counts']
+           'pyramid_rays', 'record_facets', 'reset_reuse', 'reuse_counts', 'CONE_TOL']
+
+#: Default tolerance of the cone's span, facet sides and ranks, and of a frictionless contact.
+CONE_TOL = 1e-9
 
 
 def friction_pyramid(normal: np.ndarray, mu: float, sides: int = 4, *,
@@ -144,9 +147,9 @@ def _angles(sides: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
 
 def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
                         friction_coefficients: np.ndarray | float, sides: int = 4, *,
-                        span_tol: float = 1e-9, rank_tol: float = 1e-9,
-                        side_tol: float = 1e-9,
-                        frictionless_tol: float = 1e-9) -> Polytope:
+                        span_tol: float = CONE_TOL, rank_tol: float = CONE_TOL,
+                        side_tol: float = CONE_TOL,
+                        frictionless_tol: float = CONE_TOL) -> Polytope:
     r"""
     Return the exact H-representation of the contact wrench cone, eqs. (3-4).
 
@@ -193,9 +196,9 @@ def contact_wrench_cone(positions: np.ndarray, normals: np.ndarray,
 
 
 def contact_wrench_cone_unchecked(P: np.ndarray, N_: np.ndarray, mu: np.ndarray, sides: int,
-                                  *, span_tol: float = 1e-9, rank_tol: float = 1e-9,
-                                  side_tol: float = 1e-9,
-                                  frictionless_tol: float = 1e-9) -> Polytope:
+                                  *, span_tol: float = CONE_TOL, rank_tol: float = CONE_TOL,
+                                  side_tol: float = CONE_TOL,
+                                  frictionless_tol: float = CONE_TOL) -> Polytope:
     """
     Return :func:`contact_wrench_cone` of inputs it has checked already (eqs. (3-4)).
 

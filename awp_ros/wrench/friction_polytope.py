@@ -36,7 +36,10 @@ from awp_ros.wrench.contact_wrench_cone import friction_pyramid, friction_pyrami
 from awp_ros.wrench.force_polytope import polytope_from_halfspaces, triples
 
 __all__ = ['FrictionPolytopes', 'friction_halfspaces', 'friction_polytope', 'friction_polytopes',
-           'friction_rows', 'inside_force']
+           'friction_rows', 'inside_force', 'INSIDE_MARGIN']
+
+#: Default distance [N] inside every pyramid plane of :func:`inside_force`'s proof.
+INSIDE_MARGIN = 1e-6
 
 
 def friction_halfspaces(normal: np.ndarray, mu: float, sides: int) -> np.ndarray:
@@ -125,7 +128,7 @@ def friction_polytopes(forces: Sequence[Polytope], rows: np.ndarray, *, tol: flo
     return out
 
 
-def inside_force(forces: Sequence[Polytope], rows: np.ndarray, *, margin: float = 1e-6,
+def inside_force(forces: Sequence[Polytope], rows: np.ndarray, *, margin: float = INSIDE_MARGIN,
                  stacked: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
                  ) -> np.ndarray:
     r"""
