@@ -81,9 +81,14 @@ from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set_steps, minkow
 from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
 from awp_ros.wrench.friction_polytope import (friction_rows, FrictionPolytopes, inside_force,
                                               INSIDE_MARGIN)
-from awp_ros.wrench.wrench_polytope import awp_zonotope, feasible_wrench_polytope, zonotope_awp
+from awp_ros.wrench.wrench_polytope import (awp_zonotope, feasible_wrench_polytope, INTERIOR_TOL,
+                                            zonotope_awp)
 
 __all__ = ['compute_fws', 'compute_fws_steps', 'FeasibilityEvaluator', 'STAGES', 'warm_up']
+
+# The hull origin of the full-dimensional force polytopes (shared, read-only).
+_ZERO3 = np.zeros(3)
+_ZERO3.setflags(write=False)
 
 #: The per-cycle stages of :meth:`FeasibilityEvaluator.evaluate`, in order.
 STAGES = ('validate', 'model', 'sets', 'margins', 'regions')
@@ -175,15 +180,15 @@ class FeasibilityEvaluator:
         vcom = model.data.vcom[0].copy() \
             if state.base_twist is not None and base_velocity_known else None
         t2 = clock()
-        fused = self._cycle_sets(s, kin, warnings)
-        forces, frictions, force_rows, awp, cwc, fwp = fused if fused is not None else \
-            self._sets(s, kin, warnings)
+        fused = self._cycle_sets(s, kin, w, warnings)
+        forces, frictions, force_rows, awp, cwc, fwp, slacks = fused if fused is not None \
+            else self._sets(s, kin, warnings) + ((None, None),)
         t3 = clock()
         tol = self.feasibility_tol
         awp_r = WrenchSetResult.from_margin('awp', awp, polytope_margin(
-            awp, w, feasibility_tol=tol, hull_tol=self.hull_tol))
+            awp, w, feasibility_tol=tol, hull_tol=self.hull_tol, slack=slacks[0]))
         fwp_r = WrenchSetResult.from_margin('fwp', fwp, polytope_margin(
-            fwp, w, feasibility_tol=tol, hull_tol=self.hull_tol))
+            fwp, w, feasibility_tol=tol, hull_tol=self.hull_tol, slack=slacks[1]))
         measured = None
         if s.tau is not None and s.stance:
             info = [model.legs[f] for f in s.stance]
@@ -375,14 +380,17 @@ class FeasibilityEvaluator:
         cwc = contact_wrench_cone_unchecked(p, s.normals, s.mus, self.config.pyramid_sides)
         return forces, frictions, force_rows, awp, cwc, feasible_wrench_polytope(awp, cwc)
 
-    def _cycle_sets(self, s: ResolvedState, kin, warnings: list[str]) -> tuple | None:
+    def _cycle_sets(self, s: ResolvedState, kin, w: np.ndarray,
+                    warnings: list[str]) -> tuple | None:
         """
         Return :meth:`_sets` from one compiled call (:func:`kernels.cycle_sets`), or None.
 
         For three or more three-joint stance legs with friction, when every leg is
         non-singular and the AWP and the CWC are full-dimensional (else None: the caller
         takes :meth:`_sets`). The same kernels on the same inputs as :meth:`_sets`, so the
-        same sets, warnings and cone reuse, bit for bit.
+        same sets, warnings and cone reuse, bit for bit; and, last, the AWP's and the FWP's
+        least slack at the wrench ``w`` (:func:`~awp_ros.geometry.margin.polytope_margin`'s
+        ``slack``).
         """
         K, sides = len(s.stance), self.config.pyramid_sides
         if not (kernels.ENABLED and self._three_joint and 3 <= K <= kernels.MAX_BITS // 3
@@ -395,11 +403,12 @@ class FeasibilityEvaluator:
         last = last_facets(key)
         lo, hi = self._limits(s.stance)
         tol = ZONOTOPE_TOLS
-        status, legs, proven, awp, cone, stacked = kernels.cycle_sets(
+        status, legs, proven, awp, cone, stacked, slacks = kernels.cycle_sets(
             np.array(kin.J), np.array(kin.bias), lo, hi, self.singular_rtol, p, rays,
             max(CONE_TOL ** 2, GRAM_CERTIFY), facet_subsets(3 * K), facet_complements(3 * K),
             tol['zero_tol'], max(tol['span_tol'] ** 2, GRAM_CERTIFY), tol['rank_tol'],
-            tol['incidence_tol'], last, CONE_TOL, CONE_TOL, rows, INSIDE_MARGIN)
+            tol['incidence_tol'], last, CONE_TOL, CONE_TOL, rows, INSIDE_MARGIN, w,
+            INTERIOR_TOL)
         if status != 0:
             return None
         lifted, cone_A, spans, masks, reused = cone
@@ -411,14 +420,15 @@ class FeasibilityEvaluator:
         _friction_warnings(s.stance, frictions, proven, warnings)
         awp = zonotope_awp(*awp, 3 * K)
         cwc = cone_polytope(cone_A, lifted, identity(6))
-        fwp = feasible_wrench_polytope(awp, cwc, stacked=stacked)
-        return forces, frictions, (A, b, V), awp, cwc, fwp
+        i_awp, s_awp, i_fwp, s_fwp, interior = slacks
+        fwp = feasible_wrench_polytope(awp, cwc, stacked=stacked, interior=interior)
+        return forces, frictions, (A, b, V), awp, cwc, fwp, ((i_awp, s_awp), (i_fwp, s_fwp))
 
     def _parallelepiped_polytopes(self, center: np.ndarray, gen: np.ndarray, V: np.ndarray,
                                   A: np.ndarray, b: np.ndarray, ratio: np.ndarray
                                   ) -> list[Polytope | None]:
         """Return the batched parallelepipeds as Polytopes, None for a singular leg."""
-        eye, zero = identity(3), np.zeros(3)
+        eye, zero = identity(3), _ZERO3
         out: list[Polytope | None] = []
         for k, r in enumerate(ratio.tolist()):
             out.append(Polytope(3, V[k], A[k], b[k], zero, eye, {
@@ -611,8 +621,8 @@ def _leg_warnings(stance: tuple[str, ...], forces: Sequence[Polytope],
 def _friction_warnings(stance: tuple[str, ...], frictions: FrictionPolytopes,
                        proven: np.ndarray, warnings: list[str]) -> None:
     """Append a warning for each leg not proven to push whose friction polytope is empty."""
-    for k in () if proven.all() else np.flatnonzero(~proven).tolist():
-        if frictions[k].is_empty:
+    for k, known in enumerate(proven.tolist()):
+        if not known and frictions[k].is_empty:
             warnings.append(f'leg {stance[k]!r} cannot push on the ground within its torque '
                             'limits (empty friction-bounded polytope)')
 

@@ -35,6 +35,9 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
   normal-cone filter (a sparse wedge, the Hodge dual, the norm);
 * :func:`first_of_equal_rows`: the FWS's rows deduplicated (one hash-table pass);
 * :func:`ratio_test`: the directional margins' ratio test over every row in one pass;
+  :func:`slack_min`: the first row of least slack ``b - A w`` (the margins' inside test);
+* :func:`cycle_sets` and :func:`cycle_regions`: a control cycle's sets (with the margins'
+  slacks) and its three CoM regions, each in one call of the kernels above;
 * :func:`slice_facet_normals`: the FWS's face choices of the patterns (2, 1, 1, 1), (2, 2, 1),
   (3, 1, 1) and (3, 2) searched on the slices of one leg's facet (or of the whole leg), in R^4
   (:mod:`awp_ros.geometry.minkowski_facets`, (5)).
@@ -76,7 +79,7 @@ __all__ = [
     'first_of_equal_rows', 'flat_cone_facets', 'feasible_region', 'flat_zonotope_facets',
     'leg_vertices', 'lifted_rays', 'lifted_zonotope', 'parallelepipeds', 'polar_hull',
     'polygon_region', 'projected_polygon', 'ratio_test', 'solid_faces', 'slice_facet_normals',
-    'slice_facet_normal_parts',
+    'slice_facet_normal_parts', 'slack_min',
     'sparse_wedge_table', 'survivor_normals', 'wedge_tables', 'wrench_slice',
     'zonotope_facets']
 
@@ -451,19 +454,22 @@ def _zonotope_rows(A1, h, c):
 
 
 @_jit
-def _lifted_zonotope(P, C, H, subsets, others, zero_tol, certify, rank_tol, incidence_tol):
+def _lifted_zonotope(P, C, H, subsets, others, zero_tol, certify, rank_tol, incidence_tol,
+                     extra):
     G, c, norms = _lifted_generators(P, C, H)
     if _short_generator(norms, zero_tol) or not _full_rank(G @ G.T, certify):
         return np.empty((0, 6)), np.empty(0), c, False
     # The rows [a; -a] built in one buffer: the facets' normals first, compacted in place
-    # to the kept ones (keep[t] >= t), then their negatives (the reference's order).
-    n_sub = subsets.shape[0]
-    A, masks, multi = _row_buffers(2 * n_sub, 6)
+    # to the kept ones (keep[t] >= t), then their negatives (the reference's order), then
+    # the ``extra`` rows with b = 0 (the CWC's, for the FWP: one buffer, no copy of the
+    # AWP's rows; the AWP is its first 2k rows).
+    n_sub, m2 = subsets.shape[0], extra.shape[0]
+    A, masks, multi = _row_buffers(2 * n_sub + m2, 6)
     h = np.empty(n_sub)
     kept = _facet_rows6(G, norms, subsets, others, rank_tol, incidence_tol, A, h, masks, multi)
     keep = _first_of_each(masks[:kept], multi[:kept])
     k = keep.size
-    b = np.empty(2 * k)
+    b = np.zeros(2 * k + m2)
     for t in range(k):
         s = keep[t]
         ac = 0.0
@@ -475,7 +481,10 @@ def _lifted_zonotope(P, C, H, subsets, others, zero_tol, certify, rank_tol, inci
     for t in range(k):
         for i in range(6):
             A[k + t, i] = -A[t, i]
-    return A[:2 * k], b, c, True
+    for t in range(m2):
+        for i in range(6):
+            A[2 * k + t, i] = extra[t, i]
+    return A[:2 * k + m2], b, c, True
 
 
 @_jit(inline=True)
@@ -574,7 +583,7 @@ def lifted_zonotope(positions: np.ndarray, centers: np.ndarray, generators: np.n
                                    np.ascontiguousarray(generators, dtype=float), S,
                                    _complements(S, 3 * len(positions), others),
                                    float(zero_tol), float(certify), float(rank_tol),
-                                   float(incidence_tol))
+                                   float(incidence_tol), np.empty((0, 6)))
     return (A, b, c) if ok else None
 
 
@@ -3039,37 +3048,44 @@ def inside_forces(V: np.ndarray, A: np.ndarray, b: np.ndarray, rows: np.ndarray,
 @_jit
 def _cycle_sets(J, bias, tau_min, tau_max, singular_rtol, P, rays, ray_certify, subsets,
                 others, zero_tol, certify, rank_tol, incidence_tol, spans, masks, reuse,
-                side_tol, cone_rank_tol, cap, rows, inside_margin):
+                side_tol, cone_rank_tol, cap, rows, inside_margin, w, interior_tol):
     """See :func:`cycle_sets`."""
     center, G, V, FA, Fb, ratio = _parallelepipeds(J, bias, tau_min, tau_max, singular_rtol)
     proven = _inside_forces(V, FA, Fb, rows, inside_margin)
     e6 = np.empty((0, 6))
-    status = 0
+    singular = False
     for k in range(P.shape[0]):
         if not ratio[k] > singular_rtol:
-            status = 1
-    Aw, bw, c, ok = _lifted_zonotope(P, center, G, subsets, others, zero_tol, certify,
-                                     rank_tol, incidence_tol)
-    if status == 0 and not ok:
-        status = 2
+            singular = True
+    # The cone first: its rows follow the AWP's in the zonotope's buffer (the FWP's rows).
     lifted, full = _lifted_rays(P, rays, ray_certify)
-    Ac, reused = e6, False
-    if status == 0 and not full:
-        status = 3
-    if status == 0 and reuse:
+    Ac, reused, cone_ok = e6, False, True
+    if not singular and full and reuse:
         Ac, reused = _cone_recheck(lifted, spans, masks, side_tol, cone_rank_tol)
-    if status == 0 and not reused:
-        Ac, spans, masks, ok = _cone_dd(lifted, side_tol, cone_rank_tol, cap)
-        if not ok:
-            status = 4
-    m1, m2 = Aw.shape[0], Ac.shape[0]
-    Af = np.empty((m1 + m2, 6))
-    bf = np.zeros(m1 + m2)
-    Af[:m1] = Aw
-    Af[m1:] = Ac
-    bf[:m1] = bw
-    return (status, (center, G, V, FA, Fb, ratio), proven, (Aw, bw, c), (lifted, Ac, spans, masks,
-            reused), (Af, bf))
+    if not singular and full and not reused:
+        Ac, spans, masks, cone_ok = _cone_dd(lifted, side_tol, cone_rank_tol, cap)
+        if not cone_ok:
+            Ac = e6
+    Af, bf, c, ok = _lifted_zonotope(P, center, G, subsets, others, zero_tol, certify,
+                                     rank_tol, incidence_tol, Ac)
+    status = 1 if singular else 2 if not ok else 3 if not full else 4 if not cone_ok else 0
+    m2 = Ac.shape[0]
+    m1 = Af.shape[0] - m2 if ok else 0
+    # The margins' slack ``b - A w`` at its first smallest row (:func:`slack_min`), AWP
+    # and FWP; and the FWP's interior test of
+    # :func:`awp_ros.wrench.wrench_polytope.feasible_wrench_polytope` (the AWP's centre
+    # strictly inside the CWC, else 0 strictly inside the AWP).
+    i_awp, s_awp, i_fwp, s_fwp, interior = -1, np.inf, -1, np.inf, False
+    if status == 0:
+        i_awp, s_awp = _slack_min(Af, bf, w, 0, m1)
+        i_cwc, s_cwc = _slack_min(Af, bf, w, m1, m1 + m2)
+        i_fwp, s_fwp = (i_awp, s_awp) if not s_cwc < s_awp else (i_cwc, s_cwc)
+        # (b - A 0 = b: the least slack of 0 is the least offset.)
+        interior = _slack_min(Af, bf, c, m1, m1 + m2)[1] > interior_tol \
+            or (m1 == 0 or bf[:m1].min() > interior_tol)
+    return (status, (center, G, V, FA, Fb, ratio), proven, (Af[:m1], bf[:m1], c),
+            (lifted, Ac, spans, masks, reused), (Af, bf),
+            (i_awp, s_awp, i_fwp, s_fwp, interior))
 
 
 def cycle_sets(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray, tau_max: np.ndarray,
@@ -3077,7 +3093,8 @@ def cycle_sets(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray, tau_max: np
                ray_certify: float, subsets: np.ndarray, others: np.ndarray, zero_tol: float,
                certify: float, rank_tol: float, incidence_tol: float,
                last: tuple[np.ndarray, np.ndarray] | None, side_tol: float,
-               cone_rank_tol: float, rows: np.ndarray, inside_margin: float) -> tuple:
+               cone_rank_tol: float, rows: np.ndarray, inside_margin: float,
+               wrench: np.ndarray, interior_tol: float) -> tuple:
     r"""
     Return a control cycle's wrench sets of K >= 3 three-joint legs in one compiled call.
 
@@ -3090,13 +3107,18 @@ def cycle_sets(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray, tau_max: np
     pyramids' ``rays`` (K, N, 3), ``ray_certify``), then the CWC's facets by
     :func:`cone_recheck` of the ``last`` cone's ``(spans, masks)`` when given, else (or when
     it fails) by :func:`cone_double_description`; and the FWP's rows ``[A_awp; A_cwc]``,
-    ``[b_awp; 0]`` (:func:`awp_ros.wrench.wrench_polytope.feasible_wrench_polytope`'s order).
-    Each result is the kernel's own, bit for bit.
+    ``[b_awp; 0]`` (:func:`awp_ros.wrench.wrench_polytope.feasible_wrench_polytope`'s order),
+    written by :func:`lifted_zonotope` after the AWP's in one buffer (the AWP's rows are a
+    view of the FWP's: no copy). Then the margins' inside test at ``wrench`` [N, N.m]:
+    :func:`slack_min` of the AWP and of the FWP; and the FWP's interior test (the AWP's
+    centre ``c`` with slack above ``interior_tol`` in the CWC, else 0 in the AWP). Each
+    result is the kernel's own, bit for bit.
 
-    :return: ``(status, legs, proven, awp, cwc, fwp)``: ``legs`` the parallelepipeds'
-        ``(center, generators, vertices, A, b, sigma_ratio)``; ``proven`` (K,) bool;
-        ``awp`` ``(A, b, c)``; ``cwc`` ``(lifted rays, A, spans, masks, reused)``; ``fwp``
-        ``(A, b)``. ``status`` 0 when all hold, else the first that failed: 1 a leg at or
+    :return: ``(status, legs, proven, awp, cwc, fwp, slacks)``: ``legs`` the
+        parallelepipeds' ``(center, generators, vertices, A, b, sigma_ratio)``; ``proven``
+        (K,) bool; ``awp`` ``(A, b, c)``; ``cwc`` ``(lifted rays, A, spans, masks,
+        reused)``; ``fwp`` ``(A, b)``; ``slacks`` ``(i_awp, s_awp, i_fwp, s_fwp,
+        interior)``. ``status`` 0 when all hold, else the first that failed: 1 a leg at or
         below ``singular_rtol``, 2 the AWP not certified full-dimensional, 3 the rays not
         full rank, 4 the double description failed (the later results are then empty or
         partial: the caller takes the general code).
@@ -3115,7 +3137,8 @@ def cycle_sets(J: np.ndarray, bias: np.ndarray, tau_min: np.ndarray, tau_max: np
                        np.ascontiguousarray(spans, dtype=np.int64),
                        np.ascontiguousarray(masks, dtype=np.int64), last is not None,
                        float(side_tol), float(cone_rank_tol), 1024,
-                       np.ascontiguousarray(rows, dtype=float), float(inside_margin))
+                       np.ascontiguousarray(rows, dtype=float), float(inside_margin),
+                       np.ascontiguousarray(wrench, dtype=float), float(interior_tol))
 
 
 @_jit
@@ -3149,6 +3172,52 @@ def cycle_regions(cwc_A: np.ndarray, fwp_A: np.ndarray, fwp_b: np.ndarray,
                           np.ascontiguousarray(positions, dtype=float),
                           np.ascontiguousarray(wrench, dtype=float), float(tol),
                           float(parallel), float(h_min), int(max_lps))
+
+
+@_jit(inline=True)
+def _slack_min(A, b, w, start, stop):
+    """Return the first row ``i`` in ``[start, stop)`` of least ``b_i - A_i . w``, and it."""
+    best, at = np.inf, -1
+    if A.shape[1] == 6:                  # unrolled: the same sums, in the same order
+        w0, w1, w2, w3, w4, w5 = w[0], w[1], w[2], w[3], w[4], w[5]
+        for i in range(start, stop):
+            acc = b[i] - A[i, 0] * w0 - A[i, 1] * w1 - A[i, 2] * w2 - A[i, 3] * w3 \
+                - A[i, 4] * w4 - A[i, 5] * w5
+            if acc < best:
+                best, at = acc, i
+    else:
+        for i in range(start, stop):
+            acc = b[i]
+            for c in range(A.shape[1]):
+                acc -= A[i, c] * w[c]
+            if acc < best:
+                best, at = acc, i
+    if at < 0 and stop > start:          # every slack +inf or NaN: the first row's
+        at = start
+        best = b[start]
+        for c in range(A.shape[1]):
+            best -= A[start, c] * w[c]
+    return at, best
+
+
+@_jit
+def _slack_min_of(A, b, w):
+    return _slack_min(A, b, w, 0, A.shape[0])
+
+
+def slack_min(A: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[int, float]:
+    r"""
+    Return ``(i, s_i)``: the first row of least slack ``s = b - A w`` of ``A x <= b``.
+
+    ``s_i = b_i - sum_c A_ic w_c``, summed in this order (the per-cycle path computes its
+    margins' slacks with the same code, so both give the same bits); ``(-1, inf)`` without
+    rows. The inside test of :func:`awp_ros.geometry.margin.polytope_margin` and of the
+    FWP's interior (:func:`awp_ros.wrench.wrench_polytope.feasible_wrench_polytope`).
+    """
+    i, s = _slack_min_of(np.ascontiguousarray(A, dtype=float),
+                         np.ascontiguousarray(b, dtype=float),
+                         np.ascontiguousarray(w, dtype=float))
+    return int(i), float(s)
 
 
 @_jit(fastmath=True)
@@ -3256,6 +3325,7 @@ def compile_all() -> None:
                      index, 3, 2, 1, 0.0)                   # the general kernel
     first_of_equal_rows(g, 10)
     ratio_test(g.T, np.ones(8), np.zeros(6), np.eye(6), 1e-6, 1e-9)
+    slack_min(g.T, np.ones(8), np.zeros(6))
     inside_forces(cube[None], box[None], np.ones((1, 6)), -box[None, :3], 1e-6)
     # The per-cycle calls, with read-only tables and rays as the evaluator passes them.
     S9 = np.array(list(combinations(range(9), 5)), dtype=np.int64)
@@ -3267,7 +3337,8 @@ def compile_all() -> None:
     rows3 = -box[None, :4].repeat(3, 0)
     for last in (None, (np.zeros((1, 5), dtype=np.int64), np.zeros(1, dtype=np.int64))):
         sets = cycle_sets(J3, g[:3, :3], -np.ones((3, 3)), np.ones((3, 3)), 1e-9, P3, rays3,
-                          1e-10, S9, O9, 1e-12, 1e-10, 1e-9, 1e-9, last, 1e-9, 1e-9, rows3, 1e-6)
+                          1e-10, S9, O9, 1e-12, 1e-10, 1e-9, 1e-9, last, 1e-9, 1e-9, rows3, 1e-6,
+                          np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1e-9)
     cycle_regions(sets[4][1], sets[5][0], sets[5][1], sets[1][3], sets[1][4], rows3, P3,
                   np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1e-9, 1e-12, 0.0)
     batched_vertices(box[None], np.ones((1, 6)), np.array([[0, 1, 2]]), np.ones(1), 1e-12)

@@ -38,6 +38,7 @@ Euclidean distance in these coordinates, as the issue specifies.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 
 import numpy as np
 from scipy.optimize import nnls
@@ -78,7 +79,8 @@ class SetMargin:
 
 def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6,
                     hull_tol: float | None = None, row_tol: float = 1e-12,
-                    working_set: int = 24) -> SetMargin:
+                    working_set: int = 24, slack: tuple[int, float] | None = None
+                    ) -> SetMargin:
     r"""
     Return the signed Euclidean margin of ``w`` with respect to ``P``.
 
@@ -101,12 +103,19 @@ def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6
         are constant constraints and are dropped (a violated one means an empty set).
     :param working_set: initial number of most-violated rows in the least-distance problem;
         violated rows are added until the nearest point satisfies every row (exact).
+    :param slack: ``(i, s_i)``, the first row of least slack ``s = b - A w`` as
+        :func:`~awp_ros.geometry.kernels.slack_min` returns it, when the caller has it
+        (the per-cycle compiled call); computed here otherwise (by that function when the
+        kernels are on, so the bits are the same either way).
     :return: a :class:`SetMargin`.
     :raises InputError: when ``w`` has the wrong shape or is not finite.
     :raises GeometryError: when the non-negative least-squares solve fails.
     """
     n = P.ambient_dim
     w = _check_point(w, n)
+    if slack is not None and slack[1] >= 0.0 and P.dimension == n:
+        # Full-dimensional and inside, from the caller's slack: eq. (1), nothing off the hull.
+        return SetMargin(slack[1], P.A[slack[0]].copy(), n, 0.0, True, slack[1])
     hull_tol = feasibility_tol if hull_tol is None else max(hull_tol, feasibility_tol)
     if P.is_empty:
         return SetMargin(-np.inf, np.zeros(n), -1, np.inf, False, -np.inf)
@@ -123,15 +132,17 @@ def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6
     if r == 0:
         return _signed(0.0, np.zeros(n), 0, residual, feasibility_tol, hull_tol, d)
     # Eq. (1): the rows lie in the hull's direction space, so A w = A proj(w).
-    s = P.b - P.A @ w
-    if s.size == 0:
+    if P.b.size == 0:
         return _signed(np.inf, np.zeros(n), P.dimension, residual, feasibility_tol, hull_tol,
                        off_hull)
-    i = int(s.argmin())
-    if s[i] >= 0.0:
-        margin = float(s[i])
+    if slack is None:
+        slack = kernels.slack_min(P.A, P.b, w) if kernels.ENABLED else _slack_min(P, w)
+    i, s_i = slack
+    if s_i >= 0.0:
+        margin = s_i
         normal = P.A[i].copy()
     else:
+        s = P.b - P.A @ w
         if r == n:
             # Full-dimensional: eq. (2) directly in ambient coordinates.
             G, h = P.A, s
@@ -252,8 +263,18 @@ def _ratio_test(s: np.ndarray, Gt: np.ndarray, feasibility_tol: float,
     return t_hi, -t_lo, empty
 
 
+def _slack_min(P: Polytope, w: np.ndarray) -> tuple[int, float]:
+    """Return the first row of least slack ``b - A w`` and it (numpy)."""
+    s = P.b - P.A @ w
+    i = int(s.argmin())
+    return i, float(s[i])
+
+
 def _check_point(w: np.ndarray, n: int) -> np.ndarray:
     """Return ``w`` as a finite float vector of shape ``(n,)`` or raise InputError."""
+    if type(w) is np.ndarray and w.dtype == np.float64 and w.shape == (n,) \
+            and math.isfinite(w.sum()):        # a finite sum: every entry finite (fast path)
+        return w
     arr = np.asarray(w, dtype=float)
     if arr.shape != (n,):
         msg = f'point must have shape ({n},); got shape {arr.shape}'

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import lru_cache
 import math
 
 import numpy as np
@@ -105,17 +106,19 @@ def resolve_state(state: RobotState, joint_names: Sequence[str], feet: Sequence[
     q = _joint_vector(state.joint_positions, joint_names, 'joint_positions')
     if position_limits is not None:
         lo, hi = position_limits
-        out = (q < lo - unit_tol) | (q > hi + unit_tol)
-        for i in np.flatnonzero(out) if out.any() else ():
-            warnings.append(f'joint {joint_names[i]!r} at {q[i]:.4g} rad is outside its '
-                            f'limits [{lo[i]:.4g}, {hi[i]:.4g}]')
+        beyond = np.maximum(lo - q, q - hi)          # > 0 outside [lo, hi] [rad or m]
+        if float(beyond.max(initial=-np.inf)) > unit_tol:
+            for i in np.flatnonzero(beyond > unit_tol).tolist():
+                warnings.append(f'joint {joint_names[i]!r} at {q[i]:.4g} rad is outside its '
+                                f'limits [{lo[i]:.4g}, {hi[i]:.4g}]')
     quat = _vector(state.base_orientation, 4, 'base_orientation')
     norm = math.sqrt(float(quat @ quat))
     if norm == 0.0:
         raise InputError('base_orientation is a zero quaternion')
     if abs(norm - 1.0) > unit_tol:
         warnings.append(f'base_orientation had norm {norm:.6g}; normalised')
-    quat /= norm
+    if norm != 1.0:
+        quat /= norm
     v = a = None
     nj = len(joint_names)
     if state.joint_velocities is not None or state.base_twist is not None:
@@ -139,9 +142,8 @@ def resolve_state(state: RobotState, joint_names: Sequence[str], feet: Sequence[
     tau = None if state.joint_efforts is None else _joint_vector(
         state.joint_efforts, joint_names, 'joint_efforts')
     stance = _stance(state.stance, feet)
-    dn = np.asarray(default_normal, dtype=float)
     normals = np.empty((len(stance), 3))
-    normals[:] = dn / math.sqrt(float(dn @ dn))
+    normals[:] = _unit_normal(tuple(default_normal))
     if state.normals:
         _check_feet(state.normals, feet, 'normals')
         for k, foot in enumerate(stance):
@@ -200,6 +202,15 @@ def _joint_vector(values, joint_names: Sequence[str], name: str) -> np.ndarray:
     for i, j in enumerate(joint_names):
         out[i] = _number(values[j], f'{name}[{j!r}]')
     return out
+
+
+@lru_cache(maxsize=16)
+def _unit_normal(normal: tuple) -> np.ndarray:
+    """Return ``normal`` (3,) scaled to unit length (read-only; cached: a config's default)."""
+    dn = np.asarray(normal, dtype=float)
+    unit = dn / math.sqrt(float(dn @ dn))
+    unit.setflags(write=False)
+    return unit
 
 
 def _number(value, name: str) -> float:

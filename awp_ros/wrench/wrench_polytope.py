@@ -18,6 +18,7 @@ Equations (seed eqs. 1-3 and its Sec. on the FWP):
 
 from __future__ import annotations
 
+from functools import lru_cache
 import math
 
 import numpy as np
@@ -29,8 +30,12 @@ from awp_ros.geometry.lp import chebyshev_ball
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.geometry.zonotope import facet_complements, facet_subsets, zonotope, ZONOTOPE_TOLS
 
-__all__ = ['actuation_wrench_polytope', 'feasible_wrench_polytope', 'lift', 'lift_matrices',
-           'lift_points', 'awp_zonotope', 'zonotope_awp']
+__all__ = ['actuation_wrench_polytope', 'feasible_wrench_polytope', 'INTERIOR_TOL', 'lift',
+           'lift_matrices', 'lift_points', 'awp_zonotope', 'zonotope_awp']
+
+#: Inscribed-ball radius [N, N.m] under which the FWP is degenerate (touching sets), and
+#: the slack its cheap interior tests need (:func:`feasible_wrench_polytope`).
+INTERIOR_TOL = 1e-9
 
 
 def lift(p: np.ndarray) -> np.ndarray:
@@ -139,8 +144,9 @@ def zonotope_awp(A: np.ndarray, b: np.ndarray, c: np.ndarray, generators: int) -
 
 
 def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 1e-9,
-                             interior_tol: float = 1e-9,
-                             stacked: tuple[np.ndarray, np.ndarray] | None = None) -> Polytope:
+                             interior_tol: float = INTERIOR_TOL,
+                             stacked: tuple[np.ndarray, np.ndarray] | None = None,
+                             interior: bool | None = None) -> Polytope:
     r"""
     Return the FWP = AWP cap CWC as a stacked H-rep in the common affine hull, eq. (3).
 
@@ -162,6 +168,9 @@ def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 
     :param interior_tol: inscribed-ball radius [N, N.m] under which the set is degenerate.
     :param stacked: ``([A_awp; A_cwc], [b_awp; b_cwc])`` when the caller has them stacked
         already (:func:`awp_ros.geometry.kernels.cycle_sets`); used when the hulls coincide.
+    :param interior: the outcome of the two cheap interior tests when the caller made them
+        (:func:`~awp_ros.geometry.kernels.cycle_sets`, with ``interior_tol``), for
+        full-dimensional sets; made here when None.
     :return: the FWP; ``meta['source']`` is 0 for rows from the AWP, 1 from the CWC;
         ``meta['kind'] = 'intersection'``. Vertices are not enumerated.
     """
@@ -182,13 +191,14 @@ def feasible_wrench_polytope(awp: Polytope, cwc: Polytope, *, hull_tol: float = 
             return Polytope.empty(n)
     A, b = stacked if same and stacked is not None else \
         (np.concatenate((A1, A2)), np.concatenate((b1, b2)))
-    source = np.ones(b.size, dtype=np.int8)
-    source[:A1.shape[0]] = 0
-    meta = {'kind': 'intersection', 'source': source, 'degenerate': False}
+    meta = {'kind': 'intersection', 'source': _source(A1.shape[0], A2.shape[0]),
+            'degenerate': False}
     # A zonotope's centre is in its relative interior; the apex 0 of the CWC is in the CWC.
     center_test = same and awp.meta.get('kind') == 'zonotope'
-    if not ((center_test and _strictly_inside(A2, b2, awp.hull_origin, interior_tol))
-            or (same and _strictly_inside(A1, b1, np.zeros(n), interior_tol))):
+    if interior is None or not (same and center_test):
+        interior = ((center_test and _strictly_inside(A2, b2, awp.hull_origin, interior_tol))
+                    or (same and _strictly_inside(A1, b1, np.zeros(n), interior_tol)))
+    if not interior:
         ball = chebyshev_ball(A @ U, b - A @ origin, max_radius=1.0)
         radius = None if ball is None else ball[1]
         if radius is None or radius < -interior_tol:
@@ -279,5 +289,22 @@ def _restrict(P: Polytope, origin: np.ndarray, U: np.ndarray,
 
 
 def _strictly_inside(A: np.ndarray, b: np.ndarray, x: np.ndarray, tol: float) -> bool:
-    """Return True when ``x`` satisfies every row with slack above ``tol``."""
-    return bool(A.shape[0] == 0 or np.min(b - A @ x) > tol)
+    """
+    Return True when ``x`` satisfies every row with slack above ``tol``.
+
+    The least slack by :func:`~awp_ros.geometry.kernels.slack_min` when the kernels are on
+    (the per-cycle compiled call makes the same test with the same code).
+    """
+    if A.shape[0] == 0:
+        return True
+    least = kernels.slack_min(A, b, x)[1] if kernels.ENABLED else float(np.min(b - A @ x))
+    return least > tol
+
+
+@lru_cache(maxsize=64)
+def _source(m1: int, m2: int) -> np.ndarray:
+    """Return the FWP's row sources (read-only): ``m1`` zeros (AWP), ``m2`` ones (CWC)."""
+    source = np.ones(m1 + m2, dtype=np.int8)
+    source[:m1] = 0
+    source.setflags(write=False)
+    return source

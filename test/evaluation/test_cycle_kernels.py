@@ -47,6 +47,7 @@ def digest(r) -> str:
                   s.polytope.hull_basis, sorted(s.polytope.meta)):
             add(x)
     add(r.fwp.polytope.meta['degenerate'])
+    add(r.fwp.polytope.meta['source'])
     add(r.cwc.A)
     for region in (r.support_region, r.feasible_region_per_cycle, r.fwp.region):
         if region is None:

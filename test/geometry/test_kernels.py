@@ -751,6 +751,44 @@ def test_ratio_test_equals_numpy_and_the_lp(seed):
                     assert lp.status == 0 and abs(t - lp.x[0]) <= 1e-9 * max(1.0, abs(t))
 
 
+@pytest.mark.parametrize('seed', range(6))
+def test_slack_min_is_the_first_least_slack(seed):
+    """``slack_min``: numpy's first argmin of ``b - A w`` (3 and 6 columns, ties, no rows)."""
+    rng = np.random.default_rng(seed)
+    n = (3, 6)[seed % 2]
+    A = rng.normal(size=(rng.integers(1, 400), n))
+    b = rng.uniform(-1.0, 2.0, size=A.shape[0])
+    if seed >= 2:                                    # ties: repeated rows, first one wins
+        A[-5:], b[-5:] = A[:5], b[:5]
+    w = rng.normal(size=n)
+    s = b - A @ w
+    i, least = kernels.slack_min(A, b, w)
+    assert i == int(np.flatnonzero(s <= s.min() + 1e-12)[0])
+    assert abs(least - s[i]) <= 1e-12 * max(1.0, abs(s[i]))
+    i, least = kernels.slack_min(np.zeros((0, n)), np.zeros(0), w)
+    assert i == -1 and least == np.inf
+    i, least = kernels.slack_min(np.ones((3, n)), np.full(3, np.inf), w)     # all +inf
+    assert i == 0 and least == np.inf
+
+
+def test_polytope_margin_takes_the_callers_slack_and_is_unchanged():
+    """``polytope_margin(..., slack=slack_min(...))`` equals the margin it computes itself."""
+    from awp_ros.geometry.margin import polytope_margin
+    from awp_ros.geometry.polytope import Polytope
+    rng = np.random.default_rng(3)
+    A = rng.normal(size=(60, 6))
+    A /= np.linalg.norm(A, axis=1)[:, None]
+    P = Polytope(6, np.zeros((0, 6)), A, np.ones(60), np.zeros(6), np.eye(6))
+    for w in (rng.normal(scale=0.1, size=6), rng.normal(scale=5.0, size=6)):   # in, out
+        own = polytope_margin(P, w)
+        given = polytope_margin(P, w, slack=kernels.slack_min(P.A, P.b, w))
+        for x, y in zip((own.margin, own.normal, own.dimension, own.affine_residual,
+                         own.feasible, own.margin_in_hull),
+                        (given.margin, given.normal, given.dimension, given.affine_residual,
+                         given.feasible, given.margin_in_hull)):
+            assert np.array_equal(x, y)
+
+
 @pytest.mark.parametrize('seed', range(4))
 def test_first_of_equal_rows_equals_numpy_unique(seed):
     """The first index of each group of equal rounded rows, as numpy's unique finds it."""
