@@ -244,7 +244,7 @@ class FeasibilityResult:
         region = self.feasible_region_per_cycle
         if region is None or len(self.stance) < 3:
             return None
-        return region.contains(np.zeros(2))
+        return region.contains_origin()
 
     @property
     def feasible(self) -> bool:

@@ -23,6 +23,7 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
   contact wrench cone reuses them while they hold); :func:`lifted_rays` lifts the rays;
 * :func:`polar_hull` and :func:`polygon_region`: the CoM regions' polygons (the hull of the
   lines' dual points, the primal vertices, short edges dropped, the margin);
+  :func:`segment_slice`: the segment of a wrench set on a hyperplane (two stance legs);
 * :func:`leg_vertices`, :func:`projected_polygon` and :func:`feasible_region`: the feasible
   region by exact iterative projection of the contact-force LP (a small dense simplex);
 * :func:`parallelepipeds`: the force parallelepipeds of 3-joint legs (inverse by cofactors);
@@ -77,8 +78,10 @@ __all__ = [
     'cone_double_description', 'cone_facets', 'cone_recheck', 'cross_products', 'cycle_regions',
     'cycle_sets',
     'first_of_equal_rows', 'flat_cone_facets', 'feasible_region', 'flat_zonotope_facets',
-    'leg_vertices', 'lifted_rays', 'lifted_zonotope', 'parallelepipeds', 'polar_hull',
-    'polygon_region', 'projected_polygon', 'ratio_test', 'solid_faces', 'slice_facet_normals',
+    'leg_vertices', 'lifted_rays', 'lifted_zonotope', 'pair_basis', 'parallelepipeds',
+    'polar_hull',
+    'polygon_region', 'projected_polygon', 'ratio_test', 'segment_slice', 'solid_faces',
+    'slice_facet_normals',
     'slice_facet_normal_parts', 'slack_min',
     'sparse_wedge_table', 'survivor_normals', 'wedge_tables', 'wrench_slice',
     'zonotope_facets']
@@ -530,6 +533,49 @@ def _pair_hyperplane_of(P):
 def pair_hyperplane(positions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Return ``(n, U)`` of two feet ``positions`` (2, 3) [m] (see :func:`_pair_hyperplane`)."""
     return _pair_hyperplane_of(np.ascontiguousarray(positions, dtype=float))
+
+
+@_jit
+def _pair_basis(P, R, span_tol, certify):
+    n, U = _pair_hyperplane(P)
+    N = R.shape[0]
+    along = 0.0
+    for i in range(N):
+        a = 0.0
+        for t in range(6):
+            a += R[i, t] * n[t]
+        along += a * a
+    if not along <= span_tol * span_tol:
+        return n, U, 1
+    G = np.zeros((5, 5))                     # the Gram matrix of the rays in hull coordinates
+    h = np.empty(5)
+    for i in range(N):
+        for c in range(5):
+            acc = 0.0
+            for t in range(6):
+                acc += R[i, t] * U[t, c]
+            h[c] = acc
+        for c in range(5):
+            for d in range(5):
+                G[c, d] += h[c] * h[d]
+    return n, U, 0 if _full_rank(G, certify) else 2
+
+
+def pair_basis(positions: np.ndarray, rays: np.ndarray, span_tol: float,
+               certify: float) -> tuple[np.ndarray, np.ndarray, int]:
+    r"""
+    Return ``(n, U, status)``: two feet's wrench hyperplane when it spans their lifted rays.
+
+    :func:`pair_hyperplane` of the feet ``positions`` (2, 3) [m], then the unit lifted
+    ``rays`` (N, 6): status 1 when their components along ``n`` (rounding) exceed
+    ``span_tol`` (``sum (r_i . n)^2 > span_tol^2``), 2 when the rays in hull coordinates
+    ``R U`` are not certified of rank 5 by the Gram test of
+    :func:`awp_ros.geometry.linalg.orthonormal_span` (``det G / tr(G)^5 > certify``; the
+    caller's SVD then decides), else 0.
+    """
+    return _pair_basis(np.ascontiguousarray(positions, dtype=float),
+                       np.ascontiguousarray(rays, dtype=float), float(span_tol),
+                       float(certify))
 
 
 @_jit
@@ -1559,6 +1605,71 @@ def wrench_slice(A: np.ndarray, b: np.ndarray, wrench: np.ndarray, tol: float,
                          np.ascontiguousarray(b, dtype=float),
                          np.ascontiguousarray(wrench, dtype=float), float(tol),
                          float(parallel), float(h_min))
+
+
+@_jit
+def _segment_slice(PA, Pb, E, e, w, const_tol, wrench_tol, tol):
+    fx, fy, fz, Lx, Ly, Lz = w[0], w[1], w[2], w[3], w[4], w[5]
+    gx, gy = fy * E[5] - fz * E[4], fz * E[3] - fx * E[5]          # G = E D
+    g = e - (E[0] * fx + E[1] * fy + E[2] * fz + E[3] * Lx + E[4] * Ly + E[5] * Lz)
+    norm = np.hypot(gx, gy)
+    if not norm > const_tol:
+        return (1 if abs(g) > wrench_tol else 3), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    x, y = g * gx / (norm * norm), g * gy / (norm * norm)
+    ux, uy = -gy / norm, gx / norm
+    # The rows in t along delta = (x, y) + t u: alpha t <= beta (com_region's (4), _interval).
+    X0 = (fx, fy, fz, Lx + y * fz, Ly - x * fz, Lz + x * fy - y * fx)
+    hi, lo = np.inf, -np.inf
+    n_pos = n_neg = 0
+    const_min = np.inf
+    for i in range(PA.shape[0]):
+        a0, a1, a2, a3, a4, a5 = PA[i, 0], PA[i, 1], PA[i, 2], PA[i, 3], PA[i, 4], PA[i, 5]
+        m0 = X0[0] * a0 + X0[1] * a1 + X0[2] * a2 + X0[3] * a3 + X0[4] * a4 + X0[5] * a5
+        n0 = -fz * a4 + fy * a5
+        n1 = fz * a3 - fx * a5
+        beta = Pb[i] - m0
+        alpha = ux * n0 + uy * n1
+        if alpha > const_tol:
+            hi = min(hi, beta / alpha)
+            n_pos += 1
+        elif alpha < -const_tol:
+            lo = max(lo, beta / alpha)
+            n_neg += 1
+        else:
+            const_min = min(const_min, beta)
+    if const_min < -wrench_tol:
+        return 1, x, y, ux, uy, 0.0, 0.0
+    if n_pos == 0 or n_neg == 0:
+        return 2, x, y, ux, uy, 0.0, 0.0
+    if lo > hi + tol:
+        return 1, x, y, ux, uy, lo, hi
+    return 0, x, y, ux, uy, lo, hi
+
+
+def segment_slice(A: np.ndarray, b: np.ndarray, normal: np.ndarray, offset: float,
+                  wrench: np.ndarray, const_tol: float, wrench_tol: float,
+                  tol: float) -> tuple:
+    r"""
+    Return the CoM region of a wrench set on a hyperplane of R^6 (two stance legs) as a segment.
+
+    Steps (3)-(4) of :func:`awp_ros.wrench.com_region.com_region` for ``r = 5``, compiled:
+    the hull's equality ``normal . W(delta) = offset`` is the line ``delta = (x, y) + t u``
+    (``g = offset - normal . w``, ``G = normal D``, ``(x, y) = g G / |G|^2``, ``u`` along
+    ``G``'s null space), and each row ``a_i . W(delta) <= b_i`` (``A`` (m, 6), ``b``) the
+    bound ``alpha_i t <= beta_i``; rows with ``|alpha_i| <= const_tol`` are constant (their
+    least ``beta`` below ``-wrench_tol``: empty).
+
+    :return: ``(status, x, y, u_x, u_y, lo, hi)``: status 0 the interval ``[lo, hi]`` of
+        ``t``, 1 empty (``lo > hi + tol``, a violated constant row, or ``|g| > wrench_tol``
+        with ``|G| <= const_tol``), 2 unbounded (no bound on one side), 3 ``|G| <=
+        const_tol`` with the equality met (not a line: the caller's general steps).
+    """
+    out = _segment_slice(np.ascontiguousarray(A, dtype=float),
+                         np.ascontiguousarray(b, dtype=float),
+                         np.ascontiguousarray(normal, dtype=float), float(offset),
+                         np.ascontiguousarray(wrench, dtype=float), float(const_tol),
+                         float(wrench_tol), float(tol))
+    return (int(out[0]),) + tuple(float(v) for v in out[1:])
 
 
 # -- the feasible region by exact iterative projection (a small simplex) ---------------------
@@ -3302,11 +3413,14 @@ def compile_all() -> None:
                     np.array(list(combinations(range(9), 5)), dtype=np.int64), 1e-12, 1e-10,
                     1e-9, 1e-9)
     pair_hyperplane(g[:2, :3])
+    pair_basis(g[:2, :3], rng.normal(size=(8, 6)), 1e-9, 1e-10)
     lifted_zonotope_pair(g[:2, :3], g[3:5, :3], rng.normal(size=(2, 3, 3)),
                          np.array(list(combinations(range(6), 4)), dtype=np.int64), 1e-12,
                          1e-10, 1e-9, 1e-9, 1e-9)
     polygon_region(g[:2], np.ones(8), None, 1e-9, 1e-12)
     wrench_slice(g.T, np.ones(8), np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1e-9, 1e-12, 0.0)
+    segment_slice(g.T, np.ones(8), g[:, 0], 0.0, np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1e-9,
+                  1e-6, 1e-9)
     box = np.vstack([np.eye(3), -np.eye(3)])
     cube = leg_vertices(box, np.ones(6))
     lifted = np.vstack([np.hstack([cube.T, cube.T]), np.zeros((3, 2 * cube.shape[0]))])

@@ -153,6 +153,12 @@ class ComRegion:
         d = np.asarray(delta, dtype=float).reshape(2)
         return bool(np.all(self.A @ d <= self.b + tol))
 
+    def contains_origin(self, tol: float = 1e-9) -> bool:
+        """Return :meth:`contains` of the current CoM, ``delta = 0`` (``A 0 = 0 <= b + tol``)."""
+        if self.is_empty:
+            return False
+        return self.b.size == 0 or float((self.b + tol).min()) >= 0.0
+
 
 def com_wrench_map(force: np.ndarray, moment: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     r"""
@@ -230,6 +236,17 @@ def com_region(polytope: Polytope, force: np.ndarray, moment: np.ndarray, *,
         region = region_of_slice(P, sliced, distance_tol=distance_tol)
         if region is not None:
             return region
+    if r == 5 and kernels.ENABLED:       # two stance legs: steps (3)-(4) compiled
+        E, e = P.equalities
+        status, x, y, ux, uy, lo, hi = kernels.segment_slice(
+            P.A, P.b, E[0], float(e[0]), np.array((fx, fy, fz, Lx, Ly, Lz)), const_tol,
+            wrench_tol, distance_tol)
+        if status == 1:
+            return _empty(rows)
+        if status == 2:
+            raise InputError(_UNBOUNDED)
+        if status == 0:
+            return _segment(np.array([x, y]), np.array([ux, uy]), lo, hi, distance_tol, rows)
     if r == 5:                           # two stance legs: one equality, in scalars
         (E0, E1, E2, E3, E4, E5), = P.equalities[0].tolist()
         gx, gy = fy * E5 - fz * E4, fz * E3 - fx * E5          # G = E D

@@ -271,13 +271,16 @@ def _pair_basis(P: np.ndarray, lifted: np.ndarray,
     :func:`~awp_ros.geometry.linalg.orthonormal_span`'s SVD when it decides the same rank 5:
     the unit rays' component along ``n`` (rounding) is at most ``span_tol`` (so the sixth
     singular value is below ``span_tol`` times the first, which is >= 1), and the rays in
-    hull coordinates pass ``orthonormal_span``'s own full-rank certificate.
+    hull coordinates pass ``orthonormal_span``'s own full-rank certificate (both tests
+    compiled in :func:`~awp_ros.geometry.kernels.pair_basis`; when the certificate does not
+    hold, ``orthonormal_span``'s SVD decides).
     """
-    n, U = kernels.pair_hyperplane(P)
-    along = lifted @ n
-    if not float(along @ along) <= span_tol * span_tol:
+    n, U, status = kernels.pair_basis(P, lifted, span_tol, max(span_tol ** 2, GRAM_CERTIFY))
+    if status == 1:
         return None
-    return (n, U) if orthonormal_span(lifted @ U, rtol=span_tol).shape == (5, 5) else None
+    # Status 2: the Gram test did not certify the rank; orthonormal_span's SVD decides.
+    return (n, U) if status == 0 or orthonormal_span(lifted @ U, rtol=span_tol).shape == (5, 5) \
+        else None
 
 
 def _kernel_facets(rh: np.ndarray, subsets: np.ndarray, key: tuple, side_tol: float,

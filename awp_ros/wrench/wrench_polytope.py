@@ -254,7 +254,14 @@ def _hull_intersection(awp: Polytope, cwc: Polytope,
     U1, o1, U2, o2 = awp.hull_basis, awp.hull_origin, cwc.hull_basis, cwc.hull_origin
     if U1.shape[1] == U1.shape[0] and U2.shape[1] == U2.shape[0]:
         return o1, U1, True                       # both full-dimensional: the whole space
-    scale = max(1.0, float(np.max(np.abs(o1))))
+    scale = max(1.0, *map(abs, o1.tolist()))
+    if U1.shape[1] == U2.shape[1] == U1.shape[0] - 1 and 'equalities' in awp.__dict__ \
+            and np.array_equal(U1, U2):
+        # One hyperplane's basis (two stance legs: both sets' closed-form basis of the same
+        # feet): the same hull when o1 is on o2's hyperplane, |n . (o1 - o2)| its distance.
+        n1 = awp.equalities[0][0]
+        if abs(float(n1 @ (o1 - o2))) <= tol * scale:
+            return o1, U1, True
     if U1.shape[1] == U2.shape[1]:
         d = o1 - o2
         same = (np.linalg.norm(U2 - U1 @ (U1.T @ U2)) <= tol * U2.shape[1]

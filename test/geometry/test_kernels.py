@@ -612,6 +612,72 @@ def test_wrench_slice_equals_the_numpy_path_of_com_region():
     assert fast_paths >= 20
 
 
+@pytest.mark.parametrize('seed', range(3))
+def test_pair_basis_decides_as_the_svd(seed):
+    """Two feet's hyperplane: along-normal and rank tests against the SVD of the rays."""
+    from awp_ros.geometry.linalg import GRAM_CERTIFY, orthonormal_span
+    rng = np.random.default_rng(seed)
+    for trial in range(60):
+        P = rng.normal(size=(2, 3))
+        n, U = kernels.pair_hyperplane(P)
+        R = rng.normal(size=(8, 5)) @ U.T                   # rays in the hyperplane
+        if trial % 4 == 1:
+            R += 1e-3 * rng.normal(size=(8, 6))             # off it
+        if trial % 4 == 2:
+            R = rng.normal(size=(8, 2)) @ U[:, :2].T        # rank 2 in it
+        R /= np.linalg.norm(R, axis=1)[:, None]
+        got_n, got_U, status = kernels.pair_basis(P, R, 1e-9, max(1e-18, GRAM_CERTIFY))
+        assert np.array_equal(got_n, n) and np.array_equal(got_U, U)
+        off = float(np.sum((R @ n) ** 2)) > 1e-18
+        assert (status == 1) == off
+        if not off:
+            rank5 = orthonormal_span(R @ U, rtol=1e-9).shape == (5, 5)
+            assert (status == 0) <= rank5          # certified only when the SVD agrees
+            assert rank5 == (np.linalg.matrix_rank(R @ U, tol=1e-9 * np.linalg.norm(
+                R @ U, 2)) == 5)
+            assert (status == 0) == (trial % 4 != 2)
+
+
+def test_segment_slice_equals_the_numpy_path_of_com_region():
+    """Two stance legs (a hyperplane of R^6): the compiled segment against com_region's numpy."""
+    from awp_ros.errors import InputError
+    from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+    from awp_ros.wrench.com_region import com_region
+    ev = FeasibilityEvaluator('hyq')
+    state = ev.standing_state()
+    names = list(state.joint_positions)
+    q0 = np.array([state.joint_positions[n] for n in names])
+    rng = np.random.default_rng(5)
+    kinds = set()
+    for trial in range(40):
+        state.joint_positions = dict(zip(names, (q0 + rng.uniform(-0.15, 0.15, q0.size))
+                                         .tolist()))
+        state.stance = (['lf_foot', 'rh_foot'], ['rf_foot', 'lh_foot'],
+                        ['lf_foot', 'rf_foot'])[trial % 3]
+        result = ev.evaluate(state, fws=False)
+        force = result.wrench[:3] * rng.uniform(0.5, 2.0)
+        # Moments that put the CoM line through the sets and beside them (empty).
+        moment = result.wrench[3:] + rng.normal(scale=(0.0, 5.0, 200.0)[trial % 3], size=3)
+        for P in (result.cwc, result.fwp.polytope, result.awp.polytope):
+            assert P.hull_basis.shape[1] == 5
+            try:
+                slow = _numpy(com_region, P, force, moment)
+            except InputError:
+                with pytest.raises(InputError):
+                    com_region(P, force, moment)
+                kinds.add('unbounded')
+                continue
+            fast = com_region(P, force, moment)
+            assert fast.dimension == slow.dimension
+            kinds.add(fast.dimension)
+            np.testing.assert_allclose(fast.vertices, slow.vertices, atol=1e-9)
+            np.testing.assert_allclose(fast.A, slow.A, atol=1e-9)
+            np.testing.assert_allclose(fast.b, slow.b, atol=1e-9)
+            if fast.dimension >= 0:
+                assert fast.margin == pytest.approx(slow.margin, abs=1e-9)
+    assert {1, -1} <= kinds                  # segments and empty regions were both met
+
+
 def _faces_cases():
     """
     Return solid polytopes with their H-reps.
