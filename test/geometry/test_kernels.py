@@ -581,14 +581,19 @@ def test_the_implied_unilateral_row_is_dropped_only_when_implied(seed):
     assert kernels._needed_rows(R) == 5
 
 
-def test_wrench_slice_equals_the_numpy_path_of_com_region():
-    """The compiled steps (4)-(7) against com_region's numpy code: HyQ's CWC and FWP slices."""
+def _hyq_standing() -> tuple:
+    """Return HyQ's evaluator, its standing state, joint names and standing posture."""
     from awp_ros.evaluation.evaluator import FeasibilityEvaluator
-    from awp_ros.wrench.com_region import com_region
     ev = FeasibilityEvaluator('hyq')
     state = ev.standing_state()
     names = list(state.joint_positions)
-    q0 = np.array([state.joint_positions[n] for n in names])
+    return ev, state, names, np.array([state.joint_positions[n] for n in names])
+
+
+def test_wrench_slice_equals_the_numpy_path_of_com_region():
+    """The compiled steps (4)-(7) against com_region's numpy code: HyQ's CWC and FWP slices."""
+    from awp_ros.wrench.com_region import com_region
+    ev, state, names, q0 = _hyq_standing()
     rng = np.random.default_rng(4)
     fast_paths = 0
     for trial in range(30):
@@ -641,12 +646,8 @@ def test_pair_basis_decides_as_the_svd(seed):
 def test_segment_slice_equals_the_numpy_path_of_com_region():
     """Two stance legs (a hyperplane of R^6): the compiled segment against com_region's numpy."""
     from awp_ros.errors import InputError
-    from awp_ros.evaluation.evaluator import FeasibilityEvaluator
     from awp_ros.wrench.com_region import com_region
-    ev = FeasibilityEvaluator('hyq')
-    state = ev.standing_state()
-    names = list(state.joint_positions)
-    q0 = np.array([state.joint_positions[n] for n in names])
+    ev, state, names, q0 = _hyq_standing()
     rng = np.random.default_rng(5)
     kinds = set()
     for trial in range(40):
