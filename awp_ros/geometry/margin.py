@@ -47,7 +47,7 @@ from awp_ros.errors import GeometryError, InputError
 from awp_ros.geometry import kernels
 from awp_ros.geometry.polytope import Polytope
 
-__all__ = ['SetMargin', 'directional_margins', 'polytope_margin']
+__all__ = ['least_slack', 'SetMargin', 'directional_margins', 'polytope_margin']
 
 
 @dataclass
@@ -135,9 +135,7 @@ def polytope_margin(P: Polytope, w: np.ndarray, *, feasibility_tol: float = 1e-6
     if P.b.size == 0:
         return _signed(np.inf, np.zeros(n), P.dimension, residual, feasibility_tol, hull_tol,
                        off_hull)
-    if slack is None:
-        slack = kernels.slack_min(P.A, P.b, w) if kernels.ENABLED else _slack_min(P, w)
-    i, s_i = slack
+    i, s_i = least_slack(P.A, P.b, w) if slack is None else slack
     if s_i >= 0.0:
         margin = s_i
         normal = P.A[i].copy()
@@ -263,9 +261,18 @@ def _ratio_test(s: np.ndarray, Gt: np.ndarray, feasibility_tol: float,
     return t_hi, -t_lo, empty
 
 
-def _slack_min(P: Polytope, w: np.ndarray) -> tuple[int, float]:
-    """Return the first row of least slack ``b - A w`` and it (numpy)."""
-    s = P.b - P.A @ w
+def least_slack(A: np.ndarray, b: np.ndarray, w: np.ndarray) -> tuple[int, float]:
+    """
+    Return ``(i, s_i)``: the first row of least slack ``s = b - A w``; ``(-1, inf)`` without rows.
+
+    :func:`~awp_ros.geometry.kernels.slack_min` when the kernels are on (the per-cycle compiled
+    call uses the same code: the same bits), else numpy (the reference).
+    """
+    if kernels.ENABLED:
+        return kernels.slack_min(A, b, w)
+    if b.size == 0:
+        return -1, np.inf
+    s = b - A @ w
     i = int(s.argmin())
     return i, float(s[i])
 

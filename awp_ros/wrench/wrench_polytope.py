@@ -27,6 +27,7 @@ from awp_ros.errors import InputError
 from awp_ros.geometry import kernels
 from awp_ros.geometry.linalg import cross3, GRAM_CERTIFY, identity
 from awp_ros.geometry.lp import chebyshev_ball
+from awp_ros.geometry.margin import least_slack
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.geometry.zonotope import facet_complements, facet_subsets, zonotope, ZONOTOPE_TOLS
 
@@ -299,13 +300,10 @@ def _strictly_inside(A: np.ndarray, b: np.ndarray, x: np.ndarray, tol: float) ->
     """
     Return True when ``x`` satisfies every row with slack above ``tol``.
 
-    The least slack by :func:`~awp_ros.geometry.kernels.slack_min` when the kernels are on
-    (the per-cycle compiled call makes the same test with the same code).
+    The least slack by :func:`~awp_ros.geometry.margin.least_slack` (the per-cycle compiled
+    call makes the same test with the same code).
     """
-    if A.shape[0] == 0:
-        return True
-    least = kernels.slack_min(A, b, x)[1] if kernels.ENABLED else float(np.min(b - A @ x))
-    return least > tol
+    return A.shape[0] == 0 or least_slack(A, b, x)[1] > tol
 
 
 @lru_cache(maxsize=64)
