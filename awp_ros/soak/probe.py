@@ -33,7 +33,10 @@ class Probe:
 
     Publishers and subscriptions are reliable, keep last ``depth``. Received messages are
     appended to the list :meth:`subscribe` returns (under ``lock``), or passed to a
-    callback.
+    callback. A fast stream (the soak's reports) is better taken with ``drain=True``: by a
+    thread of its own that takes the messages as the node takes its joint states
+    (:class:`~awp_ros.node.input_drain.InputDrain`), not by rclpy's executor, which costs
+    about 0.2 ms per message: at 2 kHz 43 % of a core taken from the node under test.
     """
 
     def __init__(self, domain_id: int, name: str = 'awp_probe') -> None:
@@ -49,6 +52,8 @@ class Probe:
         self.executor.add_node(self.node)
         self._thread = threading.Thread(target=self._spin, daemon=True)
         self._thread.start()
+        self._drains: list[threading.Thread] = []
+        self._closing = threading.Event()
 
     def _spin(self) -> None:
         from rclpy.executors import ExternalShutdownException
@@ -69,25 +74,52 @@ class Probe:
         return self.node.create_publisher(mtype, topic, self.qos(depth))
 
     def subscribe(self, mtype, topic: str, callback=None, depth: int = 1000, *,
-                  raw: bool = False) -> list:
+                  raw: bool = False, drain: bool = False) -> list:
         """
         Subscribe to ``topic``; return the list the messages are appended to.
 
         :param raw: receive the serialized bytes (no deserialization: a consumer that only
             counts, or stores, big messages).
+        :param drain: take the messages in a thread of their own (class docstring), on a
+            node of their own that the executor does not spin.
         """
         got: list = []
 
         def store(msg) -> None:
             with self.lock:
                 got.append(msg)
-        self.node.create_subscription(mtype, topic, callback or store, self.qos(depth),
-                                      raw=raw)
+        handler = callback or store
+        if not drain:
+            self.node.create_subscription(mtype, topic, handler, self.qos(depth), raw=raw)
+            return got
+        import rclpy
+        from awp_ros.node.input_drain import InputDrain
+        node = rclpy.create_node(f'{self.node.get_name()}_drain{len(self._drains)}',
+                                 context=self.context)
+        sub = node.create_subscription(mtype, topic, handler, self.qos(depth), raw=raw)
+        loop = InputDrain([], (sub, lambda msg, _info: handler(msg)), self.context,
+                          budget_s=0.1)
+
+        def run() -> None:
+            try:
+                while not self._closing.is_set() and self.context.ok():
+                    loop.run()
+            except Exception:  # noqa: BLE001 -- the context shut down under the wait
+                pass
+            finally:
+                loop.close()
+                node.destroy_node()
+        thread = threading.Thread(target=run, daemon=True)
+        self._drains.append(thread)
+        thread.start()
         return got
 
     def close(self) -> None:
         """Stop spinning and leave the domain."""
         import rclpy
+        self._closing.set()
+        for thread in self._drains:
+            thread.join(timeout=5)
         self.executor.shutdown(timeout_sec=2.0)
         self._thread.join(timeout=5)
         self.node.destroy_node()

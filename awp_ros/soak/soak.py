@@ -132,7 +132,7 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
         count[0] = i + 1
 
     probe.subscribe(FeasibilityReport, f'{ns}/awp_node/report', on_report,
-                    depth=max(qos_depth, n_max + 1000), raw=True)  # never the bottleneck
+                    depth=max(qos_depth, n_max + 1000), raw=True, drain=True)
     diag = probe.subscribe(DiagnosticArray, '/diagnostics', depth=100)
     received = {name: [0] for name in subscribe}
     for name in subscribe:

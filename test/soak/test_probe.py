@@ -1,0 +1,34 @@
+"""The soak's DDS participant (awp_ros.soak.probe): a stream taken by a thread of its own."""
+
+import threading
+
+from awp_ros_msgs.msg import ContactState
+import pytest
+
+from awp_ros.soak.probe import Probe, wait_until
+
+
+@pytest.mark.parametrize('raw', [False, True])
+def test_a_drained_subscription_gets_every_message_in_order_and_stops_on_close(ros_env, raw):
+    domain = int(ros_env['ROS_DOMAIN_ID'])
+    sender, receiver = Probe(domain, 'awp_probe_test_sender'), Probe(domain, 'awp_probe_test')
+    try:
+        got = receiver.subscribe(ContactState, '/probe_test/contacts', depth=2000, raw=raw,
+                                 drain=True)
+        pub = sender.publisher(ContactState, '/probe_test/contacts', depth=2000)
+        wait_until(lambda: pub.get_subscription_count() > 0, 30.0, 'the drained subscription')
+        for i in range(1000):
+            pub.publish(ContactState(names=[f'foot_{i}']))
+        wait_until(lambda: len(got) == 1000, 30.0, '1000 messages')
+        # Not the executor's: the subscription is on a node of its own, which it does not spin.
+        info = receiver.node.get_subscriptions_info_by_topic('/probe_test/contacts')
+        assert {s.node_name for s in info} == {'awp_probe_test_drain0'}
+        assert receiver.executor.get_nodes() == [receiver.node]
+        if raw:
+            from rclpy.serialization import deserialize_message
+            got = [deserialize_message(m, ContactState) for m in got]
+        assert [m.names[0] for m in got] == [f'foot_{i}' for i in range(1000)]
+    finally:
+        sender.close()
+        receiver.close()
+    assert not [t for t in threading.enumerate() if t in receiver._drains and t.is_alive()]
