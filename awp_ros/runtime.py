@@ -12,6 +12,10 @@ Three settings matter for a loop that evaluates small numpy problems at 1 kHz:
   them created at startup (Pinocchio model, rclpy, numpy, message classes) and alive for
   good; :func:`freeze_startup_objects` moves them out of its sight once the process is set up.
 
+And one that a node asks for (its ``main_thread_cpu`` parameter): :func:`pin_thread` keeps
+the thread that answers the joint states on one CPU, its caches its own, and
+:func:`worker_cpus` gives the processes it starts afterwards the other CPUs.
+
 Library code never calls this: it changes the whole process.
 """
 
@@ -20,8 +24,13 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import gc
+import os
 
-__all__ = ['freeze_startup_objects', 'keep_freed_memory', 'limit_blas_threads', 'tune_process']
+__all__ = ['children', 'freeze_startup_objects', 'keep_freed_memory', 'limit_blas_threads',
+           'pin_thread', 'tune_process', 'worker_cpus']
+
+#: (the CPU the main thread was pinned to, the CPUs the process had before), once pinned.
+_PINNED: tuple[int, frozenset[int]] | None = None
 
 _M_TRIM_THRESHOLD = -1
 _M_MMAP_THRESHOLD = -3
@@ -75,3 +84,73 @@ def keep_freed_memory(heap_bytes: int = 64 << 20) -> None:
         libc.mallopt(_M_MMAP_THRESHOLD, heap_bytes)
     except (OSError, AttributeError):  # not glibc (musl, macOS): nothing to tune
         pass
+
+
+def children(pid: int) -> dict[int, str]:
+    """
+    Return the child processes of ``pid``: process id -> name.
+
+    From ``/proc/<pid>/task/*/children``; the name is the module of a ``python -m <module>``
+    child (e.g. ``awp_ros.node.fws_worker``), else its command.
+    """
+    out = {}
+    try:
+        tasks = os.listdir(f'/proc/{pid}/task')
+    except OSError:
+        return out
+    for task in tasks:
+        try:
+            with open(f'/proc/{pid}/task/{task}/children') as f:
+                pids = [int(c) for c in f.read().split()]
+        except OSError:
+            continue
+        for child in pids:
+            try:
+                with open(f'/proc/{child}/cmdline') as f:
+                    argv = f.read().split('\0')
+            except OSError:
+                continue
+            out[child] = argv[argv.index('-m') + 1] if '-m' in argv[:-1] else argv[0]
+    return out
+
+
+def pin_thread(cpu: int) -> frozenset[int]:
+    """
+    Run the calling thread on CPU ``cpu`` only (Linux ``sched_setaffinity`` of the thread).
+
+    Threads it starts afterwards inherit that CPU; threads started before it (Fast DDS's)
+    keep every CPU, and the child processes (the workers it started before, and those
+    started afterwards through :func:`worker_cpus`) get the others.
+
+    :return: the CPUs the thread could run on before.
+    :raises ValueError: ``cpu`` is not one of them.
+    :raises OSError: not supported here (not Linux) or not permitted.
+    """
+    global _PINNED
+    if not hasattr(os, 'sched_setaffinity'):
+        raise OSError('CPU affinity is not supported on this platform')
+    allowed = frozenset(os.sched_getaffinity(0))
+    if cpu not in allowed:
+        raise ValueError(f'CPU {cpu} is not one this process may run on: '
+                         f'{sorted(allowed)}')
+    os.sched_setaffinity(0, {cpu})
+    _PINNED = (cpu, allowed)
+    for child in children(os.getpid()):
+        try:
+            os.sched_setaffinity(child, worker_cpus())
+        except OSError:                   # gone meanwhile
+            pass
+    return allowed
+
+
+def worker_cpus() -> frozenset[int] | None:
+    """
+    Return the CPUs for a worker process started now, None when no thread is pinned.
+
+    Those the process had before :func:`pin_thread` but the pinned one (all of them when it
+    had only that one); None: the worker inherits the process's CPUs.
+    """
+    if _PINNED is None:
+        return None
+    cpu, allowed = _PINNED
+    return allowed - {cpu} or allowed

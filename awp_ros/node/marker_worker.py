@@ -31,6 +31,8 @@ import sys
 import threading
 from typing import BinaryIO
 
+from awp_ros.runtime import worker_cpus
+
 __all__ = ['MarkerJob', 'MarkerWorker', 'NICE', 'serve', 'yield_to_node']
 
 #: ``(function, args, kwargs)``: ``function(*args, **kwargs)`` returns the MarkerArray.
@@ -49,14 +51,22 @@ def yield_to_node(pid: int) -> None:
     The workers (markers, FWS) run in the node's session, so the scheduler weighs them
     against the node: at +10 a worker busy for a whole FWS (~4 ms), or importing at
     startup, no longer delays joint states queued behind it on two shared cores, and it
-    still gets every idle cycle. Called by the node right after the worker started (its
-    threads, created later, inherit it); a no-op where not available or permitted.
+    still gets every idle cycle. When the node's main thread is pinned to a CPU
+    (``main_thread_cpu``), the worker gets the other CPUs (:func:`~awp_ros.runtime.worker_cpus`),
+    not the pinned one it would inherit. Called by the node right after the worker started
+    (its threads, created later, inherit both); a no-op where not available or permitted.
     """
     try:
         nice = min(os.getpriority(os.PRIO_PROCESS, 0) + NICE, 19)
         os.setpriority(os.PRIO_PROCESS, pid, nice)
     except (AttributeError, OSError):    # no setpriority, or the worker is gone: as before
         pass
+    cpus = worker_cpus()
+    if cpus is not None:
+        try:
+            os.sched_setaffinity(pid, cpus)
+        except OSError:                   # the worker is gone
+            pass
 
 
 class MarkerWorker:

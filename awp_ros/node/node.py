@@ -30,7 +30,8 @@ Parameters: the robot config keys of ``config/<robot>.yaml`` (``robot_name``, ``
 ``contact_normal``, ``pyramid_sides``, ``standing_posture.<joint>``), ``robot`` (a config
 name or path to start from), ``robot_description`` (URDF XML replacing ``urdf``), the
 pipeline parameters (:data:`awp_ros.ros.pipeline.PARAMETER_DOCS`) and the read-only
-``qos_depth``, ``qos_reliability``, ``executor``, ``diagnostics_period_s``, ``blas_threads``.
+``qos_depth``, ``qos_reliability``, ``executor``, ``diagnostics_period_s``, ``blas_threads``,
+``main_thread_cpu``.
 Changes of the robot keys (e.g. ``friction_coefficient``, ``torque_limits.lf_kfe_joint``)
 and pipeline parameters at runtime are validated and take effect with the next joint
 state; invalid values are rejected with the reason.
@@ -97,7 +98,8 @@ from awp_ros.ros.cdr import JointStateBytes
 from awp_ros.ros.conversions import stamp_to_ns
 from awp_ros.ros.pipeline import (InlineFws, loss_note, Pipeline, REFERENCE_HISTORY,
                                   unevaluated_report)
-from awp_ros.runtime import freeze_startup_objects, keep_freed_memory, limit_blas_threads
+from awp_ros.runtime import (freeze_startup_objects, keep_freed_memory, limit_blas_threads,
+                             pin_thread)
 
 __all__ = ['AwpNode', 'SUBSCRIBERS_PERIOD_S', 'main']
 
@@ -570,6 +572,7 @@ def main(args=None) -> int:
 def _spin(node: AwpNode) -> int:
     """Spin the node with the executor its parameters name, until shutdown."""
     kind = node.parameters.choice('executor', ('single_threaded', 'events'))
+    _pin_main_thread(node)
     if kind == 'events':
         from rclpy.experimental import EventsExecutor
         executor = EventsExecutor()
@@ -584,6 +587,23 @@ def _spin(node: AwpNode) -> int:
         freeze_startup_objects()
         executor.spin()
     return 0
+
+
+def _pin_main_thread(node: AwpNode) -> None:
+    """Pin this thread to ``main_thread_cpu`` when set; log the outcome (never fatal)."""
+    cpu = node.parameters.value('main_thread_cpu')
+    if cpu < 0:
+        return
+    try:
+        allowed = pin_thread(cpu)
+    except (OSError, ValueError) as exc:
+        reason = f'main_thread_cpu {cpu}: {exc}; the main thread is not pinned'
+        node.get_logger().error(reason)
+        node.parameters.config_errors.append(reason)          # and on /diagnostics
+        return
+    others = sorted(allowed - {cpu}) or [cpu]
+    node.get_logger().info(f'main thread pinned to CPU {cpu} (of {sorted(allowed)}); the '
+                           f'worker processes run on CPUs {others}')
 
 
 if __name__ == '__main__':

@@ -136,6 +136,8 @@ class NodeParameters:
             desc.floating_point_range = [FloatingPointRange(from_value=0.0, to_value=1e6)]
         if name == 'qos_depth':
             desc.integer_range = [IntegerRange(from_value=1, to_value=1_000_000)]
+        if name == 'main_thread_cpu':
+            desc.integer_range = [IntegerRange(from_value=-1, to_value=4095)]
         try:
             return node.declare_parameter(name, default, desc)
         except (InvalidParameterTypeException, InvalidParameterValueException) as first:

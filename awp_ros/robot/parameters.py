@@ -356,6 +356,11 @@ _NODE = {     # name: (default, description, read-only)
     'blas_threads': (1, 'threads of the BLAS under numpy/scipy in this process '
                      '(threadpoolctl); 1 avoids the stalls of busy-waiting BLAS threads on '
                      'cores shared with DDS and other processes; 0 = leave as is', True),
+    'main_thread_cpu': (-1, 'run the thread that answers the joint states (the executor, '
+                        'the evaluation, the reports) on this CPU only, from the end of '
+                        'the startup (Linux CPU affinity); Fast DDS threads keep every CPU '
+                        'and worker processes started later get the others; -1 = not '
+                        'pinned', True),
 }
 #: The node-only keys of the parameters schema (``awp_node``; the replay ignores them).
 NODE_KEYS: dict[str, ConfigKey] = {

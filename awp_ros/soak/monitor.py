@@ -8,6 +8,8 @@ import time
 
 import numpy as np
 
+from awp_ros.runtime import children
+
 __all__ = ['children', 'ProcessMonitor', 'proc_usage']
 
 _CLK_TCK = os.sysconf('SC_CLK_TCK')
@@ -31,34 +33,6 @@ def proc_usage(pid: int) -> tuple[float, int]:
                 rss = int(line.split()[1]) * 1024
                 break
     return cpu, rss
-
-
-def children(pid: int) -> dict[int, str]:
-    """
-    Return the child processes of ``pid``: process id -> name.
-
-    From ``/proc/<pid>/task/*/children``; the name is the module of a ``python -m <module>``
-    child (e.g. ``awp_ros.node.fws_worker``), else its command.
-    """
-    out = {}
-    try:
-        tasks = os.listdir(f'/proc/{pid}/task')
-    except OSError:
-        return out
-    for task in tasks:
-        try:
-            with open(f'/proc/{pid}/task/{task}/children') as f:
-                pids = [int(c) for c in f.read().split()]
-        except OSError:
-            continue
-        for child in pids:
-            try:
-                with open(f'/proc/{child}/cmdline') as f:
-                    argv = f.read().split('\0')
-            except OSError:
-                continue
-            out[child] = argv[argv.index('-m') + 1] if '-m' in argv[:-1] else argv[0]
-    return out
 
 
 class ProcessMonitor:

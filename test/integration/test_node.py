@@ -34,6 +34,7 @@ from awp_ros.node.launcher import start_node
 from awp_ros.robot.config import find_parameters_file
 from awp_ros.robot.state import RobotState
 from awp_ros.ros.conversions import polytope_from_msg, stamp_to_ns
+from awp_ros.runtime import children
 from awp_ros.soak.probe import wait_until
 from cases import DdsPeer, stamp, stop_peers
 
@@ -556,6 +557,60 @@ def test_another_robot_runs_from_its_params_file(run_node):
     assert rep.status == FeasibilityReport.STATUS_OK, rep.status_message
     assert list(rep.stance_feet) == feet
     assert rep.fwp_margin == pytest.approx(ref.fwp.margin, abs=1e-7)
+
+
+def _allowed_cpus(pid: int, tid: int | None = None) -> set[int]:
+    """Return the CPUs a thread (default the process's main thread) may run on, from /proc."""
+    path = f'/proc/{pid}/task/{tid or pid}/status'
+    line = next(x for x in open(path).read().splitlines() if x.startswith('Cpus_allowed_list'))
+    cpus = set()
+    for part in line.split(':')[1].strip().split(','):
+        lo, _, hi = part.partition('-')
+        cpus.update(range(int(lo), int(hi or lo) + 1))
+    return cpus
+
+
+@pytest.mark.skipif(not hasattr(os, 'sched_getaffinity'), reason='Linux CPU affinity')
+def test_main_thread_cpu_pins_the_joint_state_thread_and_the_workers_take_the_others(
+        run_node, evaluator):
+    allowed = os.sched_getaffinity(0)
+    cpu = max(allowed)
+    # fws_lag_s: the FWS worker process runs beside the node (besides the marker worker).
+    peer = run_node({'report': FeasibilityReport}, '-p', f'main_thread_cpu:={cpu}',
+                    '-p', 'fws_lag_s:=0.02')
+    ns = peer.now_ns()
+    peer.send_contacts(_contacts(ns, FEET))
+    peer.wait_received('contacts')
+    for i in range(1, 40):
+        peer.js.publish(_joints(evaluator, ns + i * 1_000_000, evaluator.model.standing_q))
+    peer.wait_for(lambda g: len(g['report']) == 39, 30, '39 reports')
+    assert all(m.status == FeasibilityReport.STATUS_OK for m in peer.got['report'])
+    pid = peer.proc.pid
+    assert _allowed_cpus(pid) == {cpu}
+    # Fast DDS's threads, started before the pinning, keep every CPU.
+    tids = [int(t) for t in os.listdir(f'/proc/{pid}/task') if int(t) != pid]
+    assert any(_allowed_cpus(pid, t) == allowed for t in tids)
+    workers = children(pid)
+    assert {'awp_ros.node.fws_worker', 'awp_ros.node.marker_worker'} <= set(workers.values())
+    others = allowed - {cpu} or allowed
+    assert {w: _allowed_cpus(p) for p, w in workers.items()} \
+        == {w: others for w in workers.values()}
+    log = open(peer.proc.log_path).read()
+    assert f'main thread pinned to CPU {cpu}' in log
+
+
+def test_a_main_thread_cpu_it_may_not_run_on_is_reported_and_not_fatal(run_node, evaluator):
+    peer = run_node({'report': FeasibilityReport}, '-p', 'main_thread_cpu:=4095')
+    ns = peer.now_ns()
+    peer.send_contacts(_contacts(ns, FEET))
+    peer.wait_received('contacts')
+    peer.js.publish(_joints(evaluator, ns + 1, evaluator.model.standing_q))
+    peer.wait_for(lambda g: len(g['report']) == 1, 30, 'the report')
+    assert peer.got['report'][0].status == FeasibilityReport.STATUS_OK
+    assert _allowed_cpus(peer.proc.pid) == os.sched_getaffinity(0)
+    wait_until(lambda: 'main_thread_cpu 4095: CPU 4095 is not one this process may run on'
+               in peer.status('evaluation').get('rejected parameters', ''), 30,
+               'the rejection on /diagnostics')
 
 
 def test_one_report_per_joint_state_at_1khz(run_node, evaluator):
