@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import threading
 import time
+import traceback
 
 __all__ = ['Probe', 'wait_until']
 
@@ -54,6 +55,8 @@ class Probe:
         self._thread.start()
         self._drains: list[threading.Thread] = []
         self._closing = threading.Event()
+        #: Exceptions that ended a drained subscription's thread (its handler's, rclpy's).
+        self.drain_errors: list[Exception] = []
 
     def _spin(self) -> None:
         from rclpy.executors import ExternalShutdownException
@@ -104,8 +107,10 @@ class Probe:
             try:
                 while not self._closing.is_set() and self.context.ok():
                     loop.run()
-            except Exception:  # noqa: BLE001 -- the context shut down under the wait
-                pass
+            except Exception as exc:  # noqa: BLE001 -- kept and printed, unless shutting down
+                if not self._closing.is_set() and self.context.ok():
+                    self.drain_errors.append(exc)
+                    traceback.print_exc()
             finally:
                 loop.close()
                 node.destroy_node()

@@ -175,6 +175,8 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
             elif time.monotonic() - last_change > stall_timeout_s:
                 break
         time.sleep(1.2)              # a duplicate, and the node's last diagnostics, arrive
+        if probe.drain_errors:
+            raise ProcessError(f'the report subscriber failed: {probe.drain_errors[0]!r}')
     finally:
         if monitor is not None:
             monitor.stop()

@@ -28,7 +28,31 @@ def test_a_drained_subscription_gets_every_message_in_order_and_stops_on_close(r
             from rclpy.serialization import deserialize_message
             got = [deserialize_message(m, ContactState) for m in got]
         assert [m.names[0] for m in got] == [f'foot_{i}' for i in range(1000)]
+        assert receiver.drain_errors == []
     finally:
         sender.close()
         receiver.close()
     assert not [t for t in threading.enumerate() if t in receiver._drains and t.is_alive()]
+
+
+def test_a_drained_handler_that_fails_is_kept_not_dropped(ros_env, capfd):
+    domain = int(ros_env['ROS_DOMAIN_ID'])
+    sender, receiver = Probe(domain, 'awp_probe_fail_sender'), Probe(domain, 'awp_probe_fail')
+    seen = []
+
+    def handler(msg) -> None:
+        seen.append(msg)
+        if len(seen) == 3:
+            raise RuntimeError('a bug in the handler')
+    try:
+        receiver.subscribe(ContactState, '/probe_fail/contacts', handler, depth=100, drain=True)
+        pub = sender.publisher(ContactState, '/probe_fail/contacts', depth=100)
+        wait_until(lambda: pub.get_subscription_count() > 0, 30.0, 'the drained subscription')
+        for i in range(5):
+            pub.publish(ContactState(names=[f'foot_{i}']))
+        wait_until(lambda: receiver.drain_errors, 30.0, 'the handler error')
+    finally:
+        sender.close()
+        receiver.close()
+    assert [repr(e) for e in receiver.drain_errors] == ["RuntimeError('a bug in the handler')"]
+    assert 'a bug in the handler' in capfd.readouterr().err
