@@ -135,9 +135,10 @@ def pin_thread(cpu: int) -> frozenset[int]:
                          f'{sorted(allowed)}')
     os.sched_setaffinity(0, {cpu})
     _PINNED = (cpu, allowed)
+    others = worker_cpus()
     for child in children(os.getpid()):
         try:
-            os.sched_setaffinity(child, worker_cpus())
+            os.sched_setaffinity(child, others)
         except OSError:                   # gone meanwhile
             pass
     return allowed

@@ -25,7 +25,8 @@ import struct
 from builtin_interfaces.msg import Time
 import numpy as np
 
-__all__ = ['CdrLayout', 'JointStateBytes', 'layout', 'report_stamp_status', 'report_status']
+__all__ = ['CdrLayout', 'JointStateBytes', 'layout', 'report_stamp_status', 'report_status',
+           'stamped']
 
 # type name -> (struct code, size)
 _PRIMITIVES = {
@@ -175,6 +176,18 @@ def report_stamp_status(data: bytes) -> tuple[int, int]:
     return sec * 1_000_000_000 + nanosec, data[16 + length]
 
 
+def stamped(data: bytearray, ns: int) -> bytes:
+    """
+    Return a serialized message whose first field is a ``std_msgs/Header`` with stamp ``ns`` [ns].
+
+    Written into ``data`` in place (``int32 sec``, ``uint32 nanosec`` right after the 4-byte
+    encapsulation header), then copied out: a message serialized once is sent with a new
+    stamp each time (the soak's driver).
+    """
+    _INTS2.pack_into(data, 4, *divmod(ns, 1_000_000_000))
+    return bytes(data)
+
+
 def report_status(data: bytes) -> tuple[int, str, float]:
     """
     Return the ``status``, ``status_message`` and ``compute_time`` of a serialized report.
@@ -265,6 +278,7 @@ class JointStateBytes:
 
 
 _INTS3 = struct.Struct('<iII')
+_INTS2 = struct.Struct('<iI')
 _EMPTY = np.zeros(0)
 _EMPTY.setflags(write=False)
 _UINT = struct.Struct('<I')

@@ -8,7 +8,6 @@ stamped with the wall clock when published, and saves the stamps it sent;
 
 from __future__ import annotations
 
-import struct
 import sys
 import time
 
@@ -25,18 +24,13 @@ def _stamp(msg, ns: int):
     return msg
 
 
-# A serialized message (CDR, 4-byte encapsulation header) starts with header.stamp: int32
-# sec, uint32 nanosec.
-_STAMP = struct.Struct('<iI')
-
-
 def _joint_state_bytes(names: list[str], q: np.ndarray, v: np.ndarray) -> list[bytearray]:
     """
     Return the serialized JointState of each gait sample (name, position, velocity).
 
     Serialized once, before the drive: at 2 kHz, building and converting a message per
     publish cost the driver about a fifth of a core, taken from the node under test.
-    :func:`_stamped` then writes each one's stamp into its bytes.
+    :func:`awp_ros.ros.cdr.stamped` then writes each one's stamp into its bytes.
     """
     from rclpy.serialization import serialize_message
     from sensor_msgs.msg import JointState
@@ -46,12 +40,6 @@ def _joint_state_bytes(names: list[str], q: np.ndarray, v: np.ndarray) -> list[b
         js.position, js.velocity = qk.tolist(), vk.tolist()
         out.append(bytearray(serialize_message(js)))
     return out
-
-
-def _stamped(data: bytearray, ns: int) -> bytes:
-    """Return serialized message bytes with ``header.stamp`` set to ``ns`` [ns]."""
-    _STAMP.pack_into(data, 4, *divmod(ns, 1_000_000_000))
-    return bytes(data)
 
 
 def drive(*, rate_hz: float, duration_s: float, robot: str, namespace: str,
@@ -71,6 +59,7 @@ def drive(*, rate_hz: float, duration_s: float, robot: str, namespace: str,
 
     from awp_ros.gait.generator import generate_gait
     from awp_ros.robot.config import load_config
+    from awp_ros.ros.cdr import stamped
 
     send_js, send_c = topics in ('both', 'joint_states'), topics in ('both', 'contacts')
     if not (send_js or send_c):
@@ -112,7 +101,7 @@ def drive(*, rate_hz: float, duration_s: float, robot: str, namespace: str,
             c_pub.publish(_stamp(cs, now))
             last_contacts, last_stance = now, stance[k]
         if send_js:
-            js_pub.publish(_stamped(messages[k], now))
+            js_pub.publish(stamped(messages[k], now))
         stamps[i] = now
     elapsed = time.perf_counter() - start
     # Every publisher waits for its acknowledgements (a list, not a short-circuiting generator).

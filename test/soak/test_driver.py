@@ -4,7 +4,8 @@ import numpy as np
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import JointState
 
-from awp_ros.soak.driver import _joint_state_bytes, _stamped
+from awp_ros.ros.cdr import stamped as _stamped
+from awp_ros.soak.driver import _joint_state_bytes
 
 
 def test_stamped_bytes_are_the_typesupport_bytes_of_the_stamped_message():
