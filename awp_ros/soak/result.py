@@ -29,6 +29,9 @@ class SoakResult:
     sent_rate_hz: float = float('nan')
     reports: int = 0
     missing: int = 0
+    #: Of ``missing``, the stamps sent before the first one answered: lost before the node's
+    #: first take, so without an earlier sequence number the node could count them from.
+    missing_before_first_report: int = 0
     duplicates: int = 0
     unexpected: int = 0
     status_counts: dict = field(default_factory=dict)
@@ -71,7 +74,8 @@ class SoakResult:
         warm = self.latency_after_warmup_ms
         lines += [
             f'sent {self.sent} joint states at {self.sent_rate_hz:.1f} Hz; reports '
-            f'{self.reports}; missing {self.missing}; duplicates {self.duplicates}; '
+            f'{self.reports}; missing {self.missing} ({self.missing_before_first_report} before '
+            f'the first report); duplicates {self.duplicates}; '
             f'unexpected {self.unexpected}; statuses {self.status_counts}',
             f'latency stamp -> report received [ms]: p50 {lat.get("p50", float("nan")):.1f}, '
             f'p99 {lat.get("p99", float("nan")):.1f}, max {lat.get("max", float("nan")):.1f}'

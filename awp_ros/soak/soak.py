@@ -191,6 +191,8 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     uniq = np.unique(got)
     result.duplicates = int(n - uniq.size)
     result.missing = int(np.setdiff1d(sent, uniq).size)
+    result.missing_before_first_report = int(np.count_nonzero(sent < got.min())) if n \
+        else int(sent.size)
     result.unexpected = int(np.setdiff1d(uniq, sent).size)
     names = ('ok', 'warning', 'invalid_input', 'stale_input', 'error')
     result.status_counts = {names[k]: int(c) for k, c in enumerate(np.bincount(st, minlength=5))

@@ -110,9 +110,12 @@ def test_a_queue_too_short_for_the_backlog_loses_joint_states_but_counts_each(ro
     assert r.reports + r.missing == r.sent          # every stamp answered or counted missing
     # The node counts a loss from the next number it sees: those before the first joint state
     # it takes (DDS's queue overflowing before its first read) have no earlier number to
-    # compare with; seen once in a full CI run: 1963 counted of 1964 lost.
-    uncounted = r.missing - r.node_missing_from_sequence
-    assert 0 <= uncounted <= 5, (r.missing, r.node_missing_from_sequence)
+    # compare with (once in a full CI run: 470 of 1581, the node's first take late under
+    # load). Every loss after it is counted.
+    assert 0 <= r.missing_before_first_report <= r.missing
+    counted_after_first = r.missing - r.missing_before_first_report
+    assert abs(counted_after_first - r.node_missing_from_sequence) <= 5, (
+        r.missing, r.missing_before_first_report, r.node_missing_from_sequence)
     assert r.status_counts.get('warning', 0) >= 1   # the loss notes
     assert set(r.status_counts) <= {'ok', 'warning'}, r.status_counts
 
