@@ -180,9 +180,10 @@ class FeasibilityEvaluator:
         vcom = model.data.vcom[0].copy() \
             if state.base_twist is not None and base_velocity_known else None
         t2 = clock()
-        fused = self._cycle_sets(s, kin, w, warnings)
+        rows = self._friction_rows(s.normals, s.mus)        # the stance legs' pyramids
+        fused = self._cycle_sets(s, kin, w, rows, warnings)
         forces, frictions, force_rows, awp, cwc, fwp, slacks = fused if fused is not None \
-            else self._sets(s, kin, warnings) + ((None, None),)
+            else self._sets(s, kin, rows, warnings) + ((None, None),)
         t3 = clock()
         tol = self.feasibility_tol
         awp_r = WrenchSetResult.from_margin('awp', awp, polytope_margin(
@@ -194,7 +195,7 @@ class FeasibilityEvaluator:
             info = [model.legs[f] for f in s.stance]
             measured = measured_contact_forces(
                 s.stance, p, kin.J, kin.bias, [s.tau[leg.v_idx - 6] for leg in info],
-                self._friction_rows(s.normals, s.mus), [leg.tau_min for leg in info],
+                rows, [leg.tau_min for leg in info],
                 [leg.tau_max for leg in info], w)
         legs = {foot: LegResult(foot, p[k], s.normals[k], float(s.mus[k]), forces[k],
                                 partial(frictions.__getitem__, k), forces[k].meta['singular'],
@@ -205,7 +206,7 @@ class FeasibilityEvaluator:
         # vertical force defines them); each region the general code's when the kernel's
         # fast path does not hold.
         sliced = kernels.cycle_regions(
-            cwc.A, fwp.A, fwp.b, *force_rows[:2], self._friction_rows(s.normals, s.mus), p, w,
+            cwc.A, fwp.A, fwp.b, *force_rows[:2], rows, p, w,
             DISTANCE_TOL, EDGE_PARALLEL_TOL, slice_floor(*w[:3].tolist())) \
             if fused is not None and abs(w[2]) > VERTICAL_FORCE_TOL else None
         support = sliced and region_of_slice(cwc, sliced[0])
@@ -214,11 +215,9 @@ class FeasibilityEvaluator:
         if sliced is not None:
             feasible = feasible_region_of_kernel(sliced[1])
         elif force_rows is not None:
-            feasible = feasible_region_of_rows(p, *force_rows[:2],
-                                               self._friction_rows(s.normals, s.mus), w)
+            feasible = feasible_region_of_rows(p, *force_rows[:2], rows, w)
         else:
-            feasible = feasible_region(p, forces, self._friction_rows(s.normals, s.mus),
-                                       w[:3], w[3:]) if s.stance else None
+            feasible = feasible_region(p, forces, rows, w[:3], w[3:]) if s.stance else None
         t5 = clock()
         fwp_r.region = sliced and region_of_slice(fwp, sliced[2])
         if fwp_r.region is None:
@@ -356,7 +355,7 @@ class FeasibilityEvaluator:
                                [leg.force_polytope for leg in legs], rows, wrench[:3],
                                wrench[3:])
 
-    def _sets(self, s: ResolvedState, kin, warnings: list[str]) -> tuple:
+    def _sets(self, s: ResolvedState, kin, rows: np.ndarray, warnings: list[str]) -> tuple:
         """
         Return the ``sets`` stage computed stage by stage (any stance, any legs).
 
@@ -368,7 +367,6 @@ class FeasibilityEvaluator:
                                                             warnings)
         frictions: FrictionPolytopes | list = []
         if forces:
-            rows = self._friction_rows(s.normals, s.mus)
             frictions = FrictionPolytopes(forces, rows)
             _friction_warnings(s.stance, frictions,
                                inside_force(forces, rows, stacked=force_rows), warnings)
@@ -380,7 +378,7 @@ class FeasibilityEvaluator:
         cwc = contact_wrench_cone_unchecked(p, s.normals, s.mus, self.config.pyramid_sides)
         return forces, frictions, force_rows, awp, cwc, feasible_wrench_polytope(awp, cwc)
 
-    def _cycle_sets(self, s: ResolvedState, kin, w: np.ndarray,
+    def _cycle_sets(self, s: ResolvedState, kin, w: np.ndarray, rows: np.ndarray,
                     warnings: list[str]) -> tuple | None:
         """
         Return :meth:`_sets` from one compiled call (:func:`kernels.cycle_sets`), or None.
@@ -397,7 +395,6 @@ class FeasibilityEvaluator:
                 and K * sides <= kernels.MAX_BITS and float(s.mus.min()) > CONE_TOL):
             return None
         p = kin.p_foot__com
-        rows = self._friction_rows(s.normals, s.mus)
         rays = pyramid_rays(s.normals, s.mus, sides)
         key = facets_key(rays, 6)
         last = last_facets(key)

@@ -281,22 +281,27 @@ class RobotModel:
         v = self._v if v is None else v
         a = self._a if a is None else a
         tau = pin.rnea(model, data, q, v, a)
-        com = pin.centerOfMass(model, data, q, False).copy()
         wrench = 0.0 - self._mg                 # (not -mg: no negative zeros)
+        # One forward kinematics pass after RNEA's (which leaves data.oMi as it was): the
+        # centroidal momentum's (dynamic) or the CoM's fills data.oMi and data.com[0], which
+        # the joint Jacobians and frame placements then take as they are.
         if dynamic:
             pin.computeCentroidalMomentumTimeVariation(model, data, q, v, a)
             wrench[:3] += data.dhg.linear
             wrench[3:] += data.dhg.angular
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacements(model, data)
+            com = data.com[0].copy()
+        else:
+            com = pin.centerOfMass(model, data, q, False).copy()
+        pin.computeJointJacobians(model, data)
         K = len(stance)
         p = np.empty((K, 3))
         J, bias = [], []
         lwa = pin.ReferenceFrame.LOCAL_WORLD_ALIGNED
-        oMf, columns = data.oMf, self._leg_columns
+        columns = self._leg_columns
         for k, foot in enumerate(stance):
             frame_id, cols = columns[foot]
-            p[k] = oMf[frame_id].translation
+            # The stance feet's placements only (data.oMf of the other frames is not read).
+            p[k] = pin.updateFramePlacement(model, data, frame_id).translation
             J.append(pin.getFrameJacobian(model, data, frame_id, lwa)[:3, cols])
             bias.append(tau[cols])
         p -= com
