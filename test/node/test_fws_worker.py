@@ -22,7 +22,7 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import JointState
 
 from awp_ros.bags.reader import read_bag
-from awp_ros.node.fws_worker import FwsRunner
+from awp_ros.node.fws_worker import FwsRunner, FwsWorker, MAX_IN_FLIGHT
 from awp_ros.robot.config import load_parameters
 from awp_ros.ros.conversions import stamp_to_ns
 from awp_ros.ros.pipeline import InlineFws, Pipeline
@@ -162,6 +162,9 @@ def test_a_worker_still_starting_is_not_waited_for_and_gives_the_same_numbers():
     try:
         early = [runner.submit(job) for job in jobs]      # the worker is still importing
         parts = [h.result() for h in early]                # computed here, not waited for
+        # One job went to the worker while it starts; the others stay here (no full pipe).
+        assert [h._future is not None for h in early] == [True, False, False]
+        early[0]._future.result(60.0)                      # the worker has answered now
         late = [runner.submit(job) for job in jobs]
         late[-1]._future.result(60.0)                      # the worker has answered now
         for job, a, h in zip(jobs, parts, late):
@@ -211,3 +214,30 @@ def test_the_fws_in_steps_between_joint_states_answers_as_in_one_piece(bag_msgs,
     assert len(runner.handles) > 100 and runner.asked > 100
     assert runner.ready_when_asked > 0.9 * runner.asked, (runner.ready_when_asked,
                                                           runner.asked)
+
+
+def test_jobs_sent_faster_than_the_worker_answers_never_block_and_give_the_same_numbers():
+    # 60 jobs at once (~4 kB each, 240 kB) into a worker that is starting: before the limit
+    # the 17th write filled the 64 kB pipe and blocked the caller (the node's joint-state
+    # thread) ~1 s until the worker read. Now it holds one job while starting and at most
+    # MAX_IN_FLIGHT later; every other job is computed by the caller, with the same numbers.
+    from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator
+    ev = FeasibilityEvaluator('hyq')
+    job = ev.fws_job(ev.evaluate(ev.standing_state(), fws=False))
+    ref = compute_fws(*job)
+    errors: list[str] = []
+    worker = FwsWorker(errors.append)
+    try:
+        starting = [worker.submit(job) for _ in range(60)]
+        sent = sum(h._future is not None for h in starting)
+        assert sent == 1 or worker._answered > 0 and sent <= MAX_IN_FLIGHT + 1, sent
+        starting[0]._future.result(60.0)
+        ready = [worker.submit(job) for _ in range(60)]
+        in_flight = sum(h._future is not None for h in ready)
+        assert 1 <= in_flight < 30, in_flight   # the limit, plus slots freed by answers meanwhile
+        for h in starting + ready:
+            part = h.result()
+            assert np.array_equal(part[0].A, ref[0].A) and part[1].margin == ref[1].margin
+        assert worker.alive and not errors
+    finally:
+        worker.close()
