@@ -42,8 +42,8 @@ ANSWER_TIMEOUT_S = 10.0
 #: Jobs sent to the worker and not yet answered, at most; one while it has answered none (it
 #: is starting). A job beyond is computed in the node (:meth:`FwsHandle.result`, the same
 #: numbers). A job is a few kB pickled, so these never fill the pipe to the worker (64 kB on
-#: Linux), whose write would block the joint-state thread until the worker reads: jobs sent
-#: to a worker still starting did, for ~1 s (the 17th job), a 270-336 ms stall in 1 kHz soaks.
+#: Linux), whose write would block the joint-state thread until the worker reads: the 17th
+#: job sent at once to a worker still starting waited ~1 s in its write.
 MAX_IN_FLIGHT = 8
 
 
