@@ -22,15 +22,23 @@ units in the keys. Two statuses:
   the last warning (the reasons of the reports), the reports per number of stance legs in
   the period (e.g. ``2:480, 4:520``; fewer than 3 legs give flat wrench sets), compute time
   p50 / p99 [ms], latency from the joint-state stamp to the report's publication p50 / p99
-  [ms] over the period, the FWS computed in the joint-state loop (``fws_lag_s`` = 0: how many
+  [ms] over the period, how long the joint states waited in the input queue (from their DDS
+  reception to the node taking them, on the node's clock: independent of the stamps) p50 /
+  p99 / max [ms], the FWS computed in the joint-state loop (``fws_lag_s`` = 0: how many
   in the period and the longest [ms]; one longer than :data:`FWS_LOOP_PERIODS` joint-state
   periods is named in the OK message, with ``fws_lag_s`` as the way to take it off the loop:
   the reports after it wait for it), and outputs that could not be built. ERROR when there is
   no robot model (``model_error``), a report of the period has ``STATUS_ERROR`` or an output
   failed; WARN when parameters were rejected at startup (``config_errors``, defaults used
   instead), reports in the period were not evaluated (invalid, stale), carried a warning,
-  or when the p50 compute time exceeds the joint-state period of the period's receive rate
-  (the node is falling behind; the queue of ``qos_depth`` absorbs bursts).
+  or when the node is falling behind: the p50 compute time exceeds the joint-state period of
+  the period's receive rate, or the joint states waited more than
+  :data:`FALLING_BEHIND_PERIODS` periods (and :data:`FALLING_BEHIND_MS`) in the input queue at
+  the median. The second catches a node whose evaluation alone fits the period but whose
+  whole answer (taking the message, evaluating, publishing the report) does not: on a machine
+  2x slower than usual, 1 kHz in, the compute time p50 was 0.63 ms and the reports up to
+  0.39 s late (README, "Diagnostics"). The queue of ``qos_depth`` absorbs bursts (an FWS in
+  the loop), which leave the median alone.
 
 ``<node>`` is the node's fully qualified name without the leading slash (``awp_node``,
 ``hyq/awp_node``), so nodes in different namespaces are told apart.
@@ -48,7 +56,7 @@ from std_msgs.msg import Header
 
 from awp_ros.ros.conversions import STATUS_NAMES
 
-__all__ = ['NodeDiagnostics']
+__all__ = ['FALLING_BEHIND_MS', 'FALLING_BEHIND_PERIODS', 'NodeDiagnostics']
 
 #: FeasibilityReport.STATUS_* value -> name used in the diagnostics keys.
 _WARNING, _ERROR = 1, 4
@@ -57,6 +65,12 @@ _REASON_CHARS = 200       # characters of a reason quoted in a status message
 #: An FWS in the joint-state loop longer than this many joint_states periods is named in the
 #: evaluation status's message: the reports after it queue behind it (the latency tail).
 FWS_LOOP_PERIODS = 2.0
+#: Falling behind: the period's median input-queue delay above this many joint-state periods
+#: and above :data:`FALLING_BEHIND_MS` (a node that keeps up takes a joint state within about
+#: one period of its arrival; bursts raise the tail, not the median).
+FALLING_BEHIND_PERIODS = 10.0
+#: ... and above this [ms] (at low rates, ten periods are already long).
+FALLING_BEHIND_MS = 10.0
 
 
 class _Ring:
@@ -136,6 +150,8 @@ class NodeDiagnostics:
         self.reports_period = np.zeros(len(STATUS_NAMES), dtype=np.int64)
         self.compute_ms = _Ring(ring_size)
         self.latency_ms = _Ring(ring_size)
+        #: How long each joint state waited in the input queue (DDS reception to take) [ms].
+        self.queue_ms = _Ring(ring_size)
         #: Wall time of each FWS computed in the joint-state loop (``fws_lag_s`` = 0) [ms].
         self.fws_loop_ms = _Ring(256)
         self.stance_period = np.zeros(_MAX_LEGS + 1, dtype=np.int64)
@@ -242,14 +258,19 @@ class NodeDiagnostics:
         c.lost_period += count
 
     def evaluated(self, status: int, compute_time_s: float, latency_s: float | None,
-                  reason: str = '', stance_legs: int | None = None) -> None:
+                  reason: str = '', stance_legs: int | None = None,
+                  queue_delay_s: float | None = None) -> None:
         """
         Count one report of ``status`` (STATUS_* value), its compute time and latency.
 
         :param reason: the report's status message (kept as the last error or warning).
         :param stance_legs: number of stance legs of an evaluated report (None: not
             evaluated).
+        :param queue_delay_s: how long the joint state waited in the input queue [s] (None:
+            unknown, not counted).
         """
+        if queue_delay_s is not None:
+            self.queue_ms.add(1e3 * queue_delay_s)
         i = min(int(status), len(STATUS_NAMES) - 1)
         self.reports_total[i] += 1
         self.reports_period[i] += 1
@@ -296,6 +317,7 @@ class NodeDiagnostics:
         self.output_errors_period = 0
         self.compute_ms.clear()
         self.latency_ms.clear()
+        self.queue_ms.clear()
         self.fws_loop_ms.clear()
         return msg
 
@@ -377,6 +399,7 @@ class NodeDiagnostics:
     def _evaluation_status(self, input_rate: float) -> DiagnosticStatus:
         c50, c99 = self.compute_ms.percentiles([50, 99])
         l50, l99 = self.latency_ms.percentiles([50, 99])
+        q50, q99, qmax = self.queue_ms.percentiles([50, 99, 100])
         values = [KeyValue(key=f'reports {name} (period)', value=str(int(n)))
                   for name, n in zip(STATUS_NAMES.values(), self.reports_period)]
         values += [KeyValue(key=f'reports {name} (total)', value=str(int(n)))
@@ -389,6 +412,9 @@ class NodeDiagnostics:
                    KeyValue(key='compute time p99 [ms]', value=f'{c99:.3f}'),
                    KeyValue(key='latency stamp to publish p50 [ms]', value=f'{l50:.3f}'),
                    KeyValue(key='latency stamp to publish p99 [ms]', value=f'{l99:.3f}'),
+                   KeyValue(key='input queue delay p50 [ms]', value=f'{q50:.3f}'),
+                   KeyValue(key='input queue delay p99 [ms]', value=f'{q99:.3f}'),
+                   KeyValue(key='input queue delay max [ms]', value=f'{qmax:.3f}'),
                    KeyValue(key='reports by stance legs (period)', value=legs),
                    KeyValue(key='last error', value=self.last_reason),
                    KeyValue(key='last warning', value=self.last_warning),
@@ -414,6 +440,10 @@ class NodeDiagnostics:
                                         f'last: {self.last_output_error[:cut]}'),
             (c50 > period_ms, f'falling behind: compute time p50 {c50:.2f} ms > joint_states '
                               f'period {period_ms:.2f} ms'),
+            (q50 > max(FALLING_BEHIND_PERIODS * period_ms, FALLING_BEHIND_MS),
+             f'falling behind: joint states waited {q50:.1f} ms (p50), up to {qmax:.0f} ms, in '
+             'the input queue: the node answers fewer than arrive (max_queue_delay_s bounds '
+             'the wait by load shedding; fws_lag_s takes the FWS off the loop)'),
         ]
         texts = [text for condition, text in candidates if condition]
         if self.model_error or period[_ERROR] or self.output_errors_period:

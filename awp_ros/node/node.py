@@ -156,6 +156,7 @@ class AwpNode(Node):
                                            topics, stale_timeout_s=p.stale_timeout_s)
         self.diagnostics.topic_timeouts['contacts'] = p.contacts_timeout_s
         self._extra_logged: frozenset = frozenset()
+        self._behind = False        # the last /diagnostics said the node is falling behind
         self._last_contacts: ContactState | None = None     # received while no model
         self.diagnostics.model_error = self.model_error
         self.diagnostics.config_errors = self.parameters.config_errors
@@ -402,8 +403,9 @@ class AwpNode(Node):
         if not self._limits_declared:           # a model built or changed at runtime
             self.parameters.declare_torque_limits(self.pipeline.evaluator.model)
             self._limits_declared = True
+        delay = _queue_delay(info)
         cycle = self.pipeline.on_joint_state(msg, missing=missing or 0,
-                                             queue_delay_s=_queue_delay(info))
+                                             queue_delay_s=delay or 0.0)
         self.pub_report.publish(cycle.report_bytes)
         subscribed = self._subscribed()
         if cycle.result is not None:
@@ -419,7 +421,8 @@ class AwpNode(Node):
             self._publish_markers(cycle)
         self.diagnostics.evaluated(cycle.status, cycle.compute_time, self._latency(msg),
                                    cycle.status_message,
-                                   None if cycle.result is None else len(cycle.result.stance))
+                                   None if cycle.result is None else len(cycle.result.stance),
+                                   queue_delay_s=delay)
         if cycle.fws_computed and cycle.result is not None:      # in the loop (fws_lag_s 0)
             tm = cycle.result.timings_ms
             self.diagnostics.fws_in_loop(sum(tm.get(k, 0.0) for k in FWS_TIMINGS))
@@ -506,8 +509,17 @@ class AwpNode(Node):
 
     def _publish_diagnostics(self) -> None:
         self._check_inputs()
-        self.pub_diag.publish(self.diagnostics.build(self.get_clock().now().to_msg(),
-                                                     time.monotonic()))
+        arr = self.diagnostics.build(self.get_clock().now().to_msg(), time.monotonic())
+        self.pub_diag.publish(arr)
+        # Falling behind is logged when it starts and when it ends, not every period.
+        evaluation = arr.status[1].message
+        behind = evaluation.startswith('falling behind') or '; falling behind' in evaluation
+        if behind != self._behind:
+            if behind:
+                self.get_logger().warning(f'/diagnostics: {evaluation}')
+            else:
+                self.get_logger().info('keeping up with joint_states again (/diagnostics)')
+            self._behind = behind
 
     def _check_inputs(self) -> None:
         """
@@ -542,9 +554,9 @@ def _type_name(mtype) -> str:
     return f'{mtype.__module__.split(".")[0]}/msg/{mtype.__name__}'
 
 
-def _queue_delay(info: dict) -> float:
+def _queue_delay(info: dict) -> float | None:
     """
-    Return how long a message waited since DDS received it [s] (0 when unknown).
+    Return how long a message waited since DDS received it [s] (None when unknown).
 
     ``received_timestamp`` of the message info is taken by the middleware on the system
     clock when the sample arrived, so this is the time spent in the subscription's queue,
@@ -552,7 +564,7 @@ def _queue_delay(info: dict) -> float:
     """
     received = info.get('received_timestamp') if info else None
     if not received:
-        return 0.0
+        return None
     return max(0.0, (time.time_ns() - received) * 1e-9)
 
 

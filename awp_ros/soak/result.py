@@ -48,6 +48,11 @@ class SoakResult:
     #: The node's FWS computed in the joint-state loop, from its /diagnostics periods:
     #: ``count``, ``max`` [ms] and ``period_max_p50`` (median of each period's longest) [ms].
     node_fws_in_loop: dict = field(default_factory=dict)
+    #: The node's own view of its input queue, from its /diagnostics periods that counted
+    #: joint states: ``periods``, ``falling_behind`` (periods whose evaluation status said
+    #: so), ``queue_delay_max_ms`` (the longest wait of a joint state in its input queue),
+    #: ``last_falling_behind_message`` (that status's message, '' if none).
+    node_queue: dict = field(default_factory=dict)
     driver: dict = field(default_factory=dict)
     timeline: list = field(default_factory=list)
     node_alive: bool = True
@@ -101,6 +106,11 @@ class SoakResult:
                          f"{fws['count']} computed, longest {fws['max']:.1f} ms, each period's "
                          'longest p50 '
                          f"{fws['period_max_p50']:.1f} ms")
+        queue = self.node_queue
+        if queue.get('periods'):
+            lines.append("the node's input queue (its /diagnostics): 'falling behind' in "
+                         f"{queue['falling_behind']} of {queue['periods']} periods, the "
+                         f"longest wait {queue['queue_delay_max_ms']:.1f} ms")
         if self.load_average:
             lines.append('machine load average (1, 5, 15 min): ' + '; '.join(
                 f'{when} {" ".join(f"{x:.2f}" for x in values)}'
@@ -173,10 +183,11 @@ def fill_timeline(result: SoakResult, s: np.ndarray, t_start: float, wall0_ns: i
 
 
 def fill_node_diagnostics(result: SoakResult, diag: list, lock: threading.Lock) -> None:
-    """Take the node's own 'lost' count, compute-time p50 and in-loop FWS from its diagnostics."""
+    """Take the node's loss counts, compute time, in-loop FWS and queue from its diagnostics."""
     with lock:
         arrays = list(diag)
     lost, gaps, p50, fws_count, fws_max = None, None, [], 0, []
+    periods, behind, queue_max, message = 0, 0, [], ''
     for arr in arrays:
         for st in arr.status:
             values = {kv.key: kv.value for kv in st.values}
@@ -187,6 +198,13 @@ def fill_node_diagnostics(result: SoakResult, diag: list, lock: threading.Lock) 
                 x = float(values.get('compute time p50 [ms]', 'nan'))
                 if np.isfinite(x):
                     p50.append(x)
+                q = float(values.get('input queue delay max [ms]', 'nan'))
+                if np.isfinite(q):
+                    periods += 1
+                    queue_max.append(q)
+                    if 'falling behind' in st.message:
+                        behind += 1
+                        message = st.message
                 n = int(values.get('FWS in the loop (period)', 0))
                 if n:
                     fws_count += n
@@ -194,6 +212,10 @@ def fill_node_diagnostics(result: SoakResult, diag: list, lock: threading.Lock) 
     if fws_count:
         result.node_fws_in_loop = {'count': fws_count, 'max': round(max(fws_max), 3),
                                    'period_max_p50': round(float(np.median(fws_max)), 3)}
+    if periods:
+        result.node_queue = {'periods': periods, 'falling_behind': behind,
+                             'queue_delay_max_ms': round(max(queue_max), 3),
+                             'last_falling_behind_message': message}
     result.node_lost_total = lost
     result.node_missing_from_sequence = gaps
     result.node_compute_p50_ms = round(float(np.median(p50)), 3) if p50 else None

@@ -5,8 +5,8 @@ The full runs (60 s at 1 kHz and at a sustained rate) are in the README, with th
 here a few seconds at a rate this machine sustains (no timing assertions: the machine is
 shared), plus the two overload behaviours, made deterministic by a node slowed down on
 purpose (the FWS every cycle, ``fws_rate_hz`` 0): a queue too short for the backlog (2 kHz
-in; every loss is counted by the node itself) and load shedding (500 Hz in; every joint
-state still answered).
+in; every loss is counted by the node itself), load shedding (500 Hz in; every joint
+state still answered), and a growing backlog, which the node's /diagnostics report.
 """
 
 from __future__ import annotations
@@ -159,6 +159,25 @@ def test_load_shedding_answers_every_joint_state(ros_env):
     unshed_s = r.sent * eval_s
     assert r.drain_s < 0.25 * unshed_s, (r.drain_s, unshed_s)
     assert r.latency_after_warmup_ms['p50'] * 1e-3 < 0.25 * unshed_s, r.latency_after_warmup_ms
+
+
+def test_a_node_slower_than_its_input_says_it_is_falling_behind(ros_env):
+    # Overloaded on purpose (the FWS every cycle, several ms, at 500 Hz in), without load
+    # shedding: the backlog grows, every joint state is still answered, and the node's own
+    # /diagnostics say how long the joint states waited in its input queue.
+    r = run_soak(500.0, 2.0, env=ros_env, warmup_s=0.4, sample_period_s=0.25,
+                 stall_timeout_s=5.0, params={'fws_rate_hz': 0.0})
+    print('\n' + r.table())
+    assert r.node_alive
+    assert r.sent == 1000 and r.reports == r.sent and r.missing == 0 and r.duplicates == 0
+    queue = r.node_queue
+    assert queue['periods'] >= 2 and queue['falling_behind'] >= 1, queue
+    assert 'in the input queue: the node answers fewer than arrive' in \
+        queue['last_falling_behind_message'], queue
+    # The node's longest wait is its own clock's view of the latency the soak measured.
+    assert queue['queue_delay_max_ms'] > 100.0, queue
+    assert queue['queue_delay_max_ms'] <= r.latency_ms['max'] + 50.0, (queue, r.latency_ms)
+    assert "the node's input queue (its /diagnostics): 'falling behind' in " in r.table()
 
 
 @pytest.mark.parametrize('worker', [True, False])

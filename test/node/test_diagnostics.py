@@ -157,3 +157,43 @@ def test_an_fws_in_the_loop_longer_than_two_periods_is_named_but_not_a_fault():
         assert ('the FWS in the loop took up to 4.2 ms, 4 joint_states periods'
                 in evaluation.message) == named, evaluation.message
         assert ('fws_lag_s' in evaluation.message) == named
+
+
+def test_a_growing_input_queue_is_falling_behind_even_when_each_evaluation_fits():
+    """
+    1 kHz joint states, 0.6 ms of compute each: the compute time fits the 1 ms period.
+
+    Whether the node keeps up is read from how long the joint states waited in its input
+    queue: a backlog growing to 0.6 s (what a 1 kHz soak on a 2x slower machine showed) is
+    falling behind; a burst of waits after a 7 ms FWS in the loop, the median untouched, is
+    not; and a period without reception times says nothing about the queue.
+    """
+    d = NodeDiagnostics('awp_node', 'hyq', ['joint_states'])
+    d.build(Time(), wall=0.0)
+    growing = 0.6 * np.arange(1000) / 1000                     # 0 .. 0.6 s
+    burst = np.full(1000, 3e-4)
+    burst[500:507] = 7e-3 - 1e-3 * np.arange(7)               # after one FWS in the loop
+    for k, (delays, behind) in enumerate(((growing, True), (burst, False), (None, False))):
+        for i in range(1000):
+            d.received('joint_states', k + i * 1e-3)
+            d.evaluated(0, compute_time_s=6e-4, latency_s=None,
+                        queue_delay_s=None if delays is None else float(delays[i]))
+        evaluation = d.build(Time(), wall=k + 1.0).status[1]
+        v = _values(evaluation)
+        if delays is None:
+            assert v['input queue delay p50 [ms]'] == 'nan', v
+        else:
+            assert float(v['input queue delay p50 [ms]']) == round(
+                1e3 * np.percentile(delays, 50), 3)
+            assert float(v['input queue delay p99 [ms]']) == round(
+                1e3 * np.percentile(delays, 99), 3)
+            assert float(v['input queue delay max [ms]']) == round(1e3 * delays.max(), 3)
+        assert float(v['compute time p50 [ms]']) == 0.6          # below the 1 ms period
+        if behind:
+            assert evaluation.level == DiagnosticStatus.WARN, evaluation.message
+            assert evaluation.message.startswith(
+                'falling behind: joint states waited 299.7 ms (p50), up to 599 ms, in the '
+                'input queue'), evaluation.message
+            assert 'max_queue_delay_s' in evaluation.message
+        else:
+            assert evaluation.level == DiagnosticStatus.OK, evaluation.message
