@@ -27,7 +27,8 @@ units in the keys. Two statuses:
   p99 / max [ms], the FWS computed in the joint-state loop (``fws_lag_s`` = 0: how many
   in the period and the longest [ms]; one longer than :data:`FWS_LOOP_PERIODS` joint-state
   periods is named in the OK message, with ``fws_lag_s`` as the way to take it off the loop:
-  the reports after it wait for it), and outputs that could not be built. ERROR when there is
+  the reports after it wait for it), the lagged FWS jobs computed in the node because the
+  worker process was late (total), and outputs that could not be built. ERROR when there is
   no robot model (``model_error``), a report of the period has ``STATUS_ERROR`` or an output
   failed; WARN when parameters were rejected at startup (``config_errors``, defaults used
   instead), reports in the period were not evaluated (invalid, stale), carried a warning,
@@ -163,6 +164,8 @@ class NodeDiagnostics:
         self.output_errors = 0
         self.output_errors_period = 0
         self.markers_skipped = 0
+        #: Lagged FWS jobs the worker process answered too late, computed in the node (total).
+        self.fws_worker_late = 0
         self.last_output_error = ''
 
     # -- recording (per message) -----------------------------------------------------------
@@ -423,6 +426,8 @@ class NodeDiagnostics:
                    KeyValue(key='output errors (total)', value=str(self.output_errors)),
                    KeyValue(key='markers skipped, worker busy (total)',
                             value=str(self.markers_skipped)),
+                   KeyValue(key='FWS computed in the node, worker late (total)',
+                            value=str(self.fws_worker_late)),
                    KeyValue(key='last output error', value=self.last_output_error)]
         period = self.reports_period
         bad = int(period[2:].sum())

@@ -18,13 +18,19 @@ the node instead (:meth:`FwsHandle.result`); later jobs are then computed in the
 still starting (~1 s: imports and its warm-up, before its first answer) is not waited for: a
 job due then is computed in the node, with the same numbers; it is sent one job meanwhile, and
 at most :data:`MAX_IN_FLIGHT` unanswered ones later, so that sending never blocks the node.
+Nor is a worker that is late: the pipeline gives it ``fws_lag_s`` of wall time from the
+submission plus :data:`awp_ros.ros.pipeline.FWS_LATE_GRACE_S`, then computes the job in the
+node (same numbers; counted in :attr:`FwsWorker.late`, not an error). The worker runs at a
+lower priority than the node and, with ``main_thread_cpu``, on the other CPUs, where the
+processes feeding the node run too: waiting for it without a bound would leave the node's own
+CPU idle while the worker is not scheduled.
 """
 
 from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
-from concurrent.futures import Future
+from concurrent.futures import Future, TimeoutError as FutureTimeout
 import pickle
 import signal
 import subprocess
@@ -36,7 +42,8 @@ from awp_ros.node.marker_worker import _read, _write, end_process, serve, yield_
 
 __all__ = ['FwsHandle', 'FwsRunner', 'FwsWorker', 'MAX_IN_FLIGHT']
 
-#: Longest wait for one answer [s] before it is computed in the node.
+#: Longest wait for one answer [s] before it is computed in the node (when the caller gives
+#: no deadline; the pipeline gives one: :data:`awp_ros.ros.pipeline.FWS_LATE_GRACE_S`).
 ANSWER_TIMEOUT_S = 10.0
 
 #: Jobs sent to the worker and not yet answered, at most; one while it has answered none (it
@@ -52,9 +59,10 @@ class FwsHandle:
 
     def __init__(self, job: tuple, future: Future | None,
                  on_error: Callable[[str], None],
-                 ready: Callable[[], bool] = lambda: True) -> None:
+                 ready: Callable[[], bool] = lambda: True,
+                 on_late: Callable[[], None] = lambda: None) -> None:
         self._job, self._future, self._on_error = job, future, on_error
-        self._ready = ready
+        self._ready, self._on_late = ready, on_late
         self._part = None
 
     def cancel(self) -> None:
@@ -65,17 +73,24 @@ class FwsHandle:
         """
         Return ``compute_fws(*job)``: the worker's answer, or computed here.
 
-        Computed here when the worker failed, and when it is still starting (it has answered
-        no job yet: ~1 s after it was started) and this answer is not in: the same numbers,
-        sooner than the worker's start-up.
+        Computed here when the worker failed, when it is still starting (it has answered
+        no job yet: ~1 s after it was started) and this answer is not in, and when the answer
+        is not in within ``timeout`` [s] (None: :data:`ANSWER_TIMEOUT_S`, then a failure):
+        the same numbers, sooner than the worker.
         """
         if self._part is not None:
             return self._part
         if self._future is not None and (self._future.done() or self._ready()):
             try:
                 self._part = self._future.result(ANSWER_TIMEOUT_S if timeout is None
-                                                 else timeout)
+                                                 else max(timeout, 0.0))
                 return self._part
+            except FutureTimeout:
+                if timeout is None:
+                    self._on_error(f'FWS worker: no answer in {ANSWER_TIMEOUT_S:g} s; '
+                                   'computed in the node')
+                else:           # late, not failed: its answer, when it comes, is dropped
+                    self._on_late()
             except Exception as exc:  # noqa: BLE001 -- any failure: compute it here
                 self._on_error(f'FWS worker: {type(exc).__name__}: {exc}; computed in the '
                                'node')
@@ -99,6 +114,8 @@ class FwsWorker:
         self._futures: deque[Future] = deque()
         self._broken = False
         self._answered = 0
+        #: Jobs whose answer was late (not in by the caller's deadline): computed in the node.
+        self.late = 0
         self._reader = threading.Thread(target=self._read, name='awp_fws_reader', daemon=True)
         self._reader.start()
 
@@ -127,7 +144,11 @@ class FwsWorker:
                 self._futures.remove(future)
                 self._fail(f'FWS worker: sending a job failed ({type(exc).__name__}: {exc})')
                 return FwsHandle(job, None, self._on_error)
-        return FwsHandle(job, future, self._on_error, lambda: self._answered > 0)
+        return FwsHandle(job, future, self._on_error, lambda: self._answered > 0,
+                         self._count_late)
+
+    def _count_late(self) -> None:
+        self.late += 1
 
     def close(self, timeout_s: float = 2.0) -> None:
         """Stop the worker (after the job it is on) and the reader."""

@@ -509,6 +509,9 @@ class AwpNode(Node):
 
     def _publish_diagnostics(self) -> None:
         self._check_inputs()
+        worker = getattr(self.fws_runner, 'worker', None)     # InlineFws: none
+        if worker is not None:
+            self.diagnostics.fws_worker_late = worker.late
         arr = self.diagnostics.build(self.get_clock().now().to_msg(), time.monotonic())
         self.pub_diag.publish(arr)
         # Falling behind is logged when it starts and when it ends, not every period.

@@ -76,8 +76,8 @@ from awp_ros.ros.input_buffer import InputBuffer, stale_reason
 from awp_ros.ros.joint_merge import JointMerger
 from awp_ros.ros.markers import MarkerStyle
 
-__all__ = ['MAX_REASON_CHARS', 'Pipeline', 'REFERENCE_HISTORY', 'check_marker_frame', 'loss_note',
-           'shorten_reason', 'unevaluated_report']
+__all__ = ['FWS_LATE_GRACE_S', 'MAX_REASON_CHARS', 'Pipeline', 'REFERENCE_HISTORY',
+           'check_marker_frame', 'loss_note', 'shorten_reason', 'unevaluated_report']
 
 _S = FeasibilityReport
 
@@ -89,6 +89,11 @@ _ORIGIN.setflags(write=False)
 
 #: Evaluated joint states kept for :meth:`Pipeline.on_wrench_reference` (the nearest in time).
 REFERENCE_HISTORY = 64
+#: Wall time [s] a lagged FWS job's runner gets beyond ``fws_lag_s`` from the job's submission;
+#: an answer not in by then is computed here (the same numbers): a worker process that is not
+#: scheduled (it runs at a lower priority, beside the processes that feed the node) is not
+#: waited for with the node's own CPU idle.
+FWS_LATE_GRACE_S = 0.005
 
 
 class Pipeline:
@@ -130,9 +135,10 @@ class Pipeline:
         # stamp, result, cycle's reference point, handle) and the last submission's stance.
         self._fws_pending: deque = deque()
         self._submitted_stance: tuple | None = None
-        #: Runs the lagged FWS jobs: ``submit(job) -> handle`` with ``handle.result()``
-        #: returning :func:`~awp_ros.evaluation.evaluator.compute_fws`'s answer (the node
-        #: sets a worker process's; by default computed here, on release).
+        #: Runs the lagged FWS jobs: ``submit(job) -> handle`` with ``handle.result(timeout)``
+        #: returning :func:`~awp_ros.evaluation.evaluator.compute_fws`'s answer, computed
+        #: here when the runner's is not in within ``timeout`` [s] (the node sets a worker
+        #: process's; by default computed here, on release).
         self.fws_runner = InlineFws()
         self._merger = self._new_merger()
         self._effort = self._new_effort_contacts()
@@ -490,8 +496,9 @@ class Pipeline:
         Due as with no lag (``fws_rate_hz`` by stamp, or a stance change, which drops the
         pending jobs of the old stance and the latest FWS: reports then carry no FWS until
         the new stance's arrives). A job due at stamp ``t`` is released in the first
-        evaluated joint state stamped ``>= t + fws_lag_s``, waiting for it when it is
-        late: the reports depend on stamps only.
+        evaluated joint state stamped ``>= t + fws_lag_s``: the reports depend on stamps
+        only. A runner whose answer is not in by ``fws_lag_s`` + :data:`FWS_LATE_GRACE_S` of
+        wall time after the submission is not waited for: the job is computed here then.
 
         :return: ``(stamp, result, reference point)`` of the job released last in this
             cycle (its ``~/fws`` message), or None.
@@ -505,13 +512,15 @@ class Pipeline:
             self._last_fws_ns = _advance(self._last_fws_ns, ns, p.fws_rate_hz) \
                 if by_rate else ns
             handle = self.fws_runner.submit(self.evaluator.fws_job(result))
+            deadline = time.monotonic() + p.fws_lag_s + FWS_LATE_GRACE_S   # wall time
             self._fws_pending.append((ns + int(round(p.fws_lag_s * 1e9)), stamp, result,
-                                      reference_point, handle))
+                                      reference_point, handle, deadline))
             self._submitted_stance = result.stance
         released = None
         while self._fws_pending and self._fws_pending[0][0] <= ns:
-            _, job_stamp, job_result, ref, handle = self._fws_pending.popleft()
-            self.evaluator.attach_fws(job_result, handle.result())
+            _, job_stamp, job_result, ref, handle, deadline = self._fws_pending.popleft()
+            self.evaluator.attach_fws(job_result,
+                                      handle.result(timeout=deadline - time.monotonic()))
             self._latest_fws = job_result.fws
             self._latest_fws_stamp = job_stamp
             self._latest_fws_stance = job_result.stance
@@ -525,7 +534,7 @@ class Pipeline:
         Steps are :class:`InlineFws`'s (about 0.1-0.4 ms each); jobs of another runner (a
         worker process) have none. A job not finished when released is finished then.
         """
-        for *_, handle in self._fws_pending:
+        for *_, handle, _ in self._fws_pending:
             step = getattr(handle, 'step', None)
             if step is not None and not step():
                 return True
@@ -533,7 +542,7 @@ class Pipeline:
 
     def _drop_pending_fws(self) -> None:
         """Forget the lagged FWS jobs not yet released (their answers are ignored)."""
-        for *_, handle in self._fws_pending:
+        for *_, handle, _ in self._fws_pending:
             cancel = getattr(handle, 'cancel', None)
             if cancel is not None:
                 cancel()

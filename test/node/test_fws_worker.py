@@ -241,3 +241,81 @@ def test_jobs_sent_faster_than_the_worker_answers_never_block_and_give_the_same_
         assert worker.alive and not errors
     finally:
         worker.close()
+
+
+def test_a_late_worker_is_not_waited_for_beyond_the_deadline_and_gives_the_same_numbers():
+    # A worker that has answered once, then is not scheduled (stopped here with SIGSTOP, as
+    # when it runs at its lower priority on a CPU busy with the processes feeding the node):
+    # the caller's deadline passes, the job is computed by the caller with the same numbers
+    # and counted late, not as an error. Without a deadline the caller waited up to 10 s.
+    import time
+    from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator
+    ev = FeasibilityEvaluator('hyq')
+    job = ev.fws_job(ev.evaluate(ev.standing_state(), fws=False))
+    ref = compute_fws(*job)
+    errors: list[str] = []
+    worker = FwsWorker(errors.append)
+    try:
+        worker.submit(job)._future.result(60.0)            # started and answering
+        os.kill(worker.pid, signal.SIGSTOP)
+        try:
+            handle = worker.submit(job)
+            assert handle._future is not None              # sent to the stopped worker
+            t0 = time.monotonic()
+            part = handle.result(timeout=0.05)
+            waited = time.monotonic() - t0
+        finally:
+            os.kill(worker.pid, signal.SIGCONT)
+        assert 0.05 <= waited < 5.0, waited                # the deadline, then one FWS here
+        assert np.array_equal(part[0].A, ref[0].A) and part[1].margin == ref[1].margin
+        assert worker.late == 1 and not errors, errors
+        # Resumed, the worker answers the late job (dropped) and then the next ones.
+        again = worker.submit(job)
+        again._future.result(60.0)
+        assert again.result(timeout=0.0)[1].margin == ref[1].margin
+        assert worker.late == 1 and worker.alive and not errors
+    finally:
+        worker.close()
+
+
+def test_the_pipeline_does_not_wait_for_a_stopped_worker(bag_msgs, lagged):
+    # The bag through a pipeline whose worker is stopped after 1500 joint states: every
+    # joint state is answered without waiting for it beyond fws_lag_s + FWS_LATE_GRACE_S of
+    # wall time per job, and the reports are those with the FWS computed in the process.
+    import time
+    from awp_ros.ros.pipeline import FWS_LATE_GRACE_S
+    reports, _ = lagged
+    errors: list[str] = []
+    runner = FwsRunner(errors.append)
+    params, base_dir = load_parameters('hyq')
+    pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
+    pipeline.set_params(replace(pipeline.params, fws_lag_s=LAG_S))
+    pipeline.fws_runner = runner
+    got, longest, stopped = [], 0.0, False
+    try:
+        runner.start()
+        ev = pipeline.evaluator                             # wait until it answers
+        runner.submit(ev.fws_job(ev.evaluate(ev.standing_state(), fws=False)))._future.result(
+            60.0)
+        for topic, msg in bag_msgs[:4000]:
+            if topic == '/contacts':
+                pipeline.on_contacts(msg)
+                continue
+            if len(got) == 1500:
+                assert runner.worker._answered > 0          # it was answering
+                os.kill(runner.worker.pid, signal.SIGSTOP)
+                stopped = True
+            t0 = time.monotonic()
+            got.append(pipeline.on_joint_state(msg).report)
+            longest = max(longest, time.monotonic() - t0)
+    finally:
+        if stopped:
+            os.kill(runner.worker.pid, signal.SIGCONT)
+        runner.close()
+    for a, b in zip(got, reports):
+        a.compute_time = b.compute_time = 0.0
+        assert _same(a, b), a.header.stamp
+    # Each due job waited at most LAG_S + FWS_LATE_GRACE_S (the bag is replayed faster than
+    # its stamps), then was computed here (a few ms; generous for a shared machine).
+    assert runner.worker.late > 5 and not errors, (runner.worker.late, errors)
+    assert longest < LAG_S + FWS_LATE_GRACE_S + 1.0, longest
