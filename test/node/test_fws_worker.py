@@ -14,6 +14,7 @@ from dataclasses import replace
 import math
 import os
 import signal
+import time
 
 from awp_ros_msgs.msg import ContactState
 import numpy as np
@@ -216,73 +217,75 @@ def test_the_fws_in_steps_between_joint_states_answers_as_in_one_piece(bag_msgs,
                                                           runner.asked)
 
 
-def test_jobs_sent_faster_than_the_worker_answers_never_block_and_give_the_same_numbers():
+@pytest.fixture(scope='module')
+def standing_job():
+    """Return the FWS job of HyQ standing on four legs and its answer computed here."""
+    from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator
+    ev = FeasibilityEvaluator('hyq')
+    job = ev.fws_job(ev.evaluate(ev.standing_state(), fws=False))
+    return job, compute_fws(*job)
+
+
+@pytest.fixture
+def worker():
+    """Yield a new FWS worker process and the list its errors go to; close it after."""
+    errors: list[str] = []
+    started = FwsWorker(errors.append)
+    yield started, errors
+    started.close()
+
+
+def test_jobs_sent_faster_than_the_worker_answers_never_block_and_give_the_same_numbers(
+        standing_job, worker):
     # 60 jobs at once (~4 kB each, 240 kB) into a worker that is starting: before the limit
     # the 17th write filled the 64 kB pipe and blocked the caller (the node's joint-state
     # thread) ~1 s until the worker read. Now it holds one job while starting and at most
     # MAX_IN_FLIGHT later; every other job is computed by the caller, with the same numbers.
-    from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator
-    ev = FeasibilityEvaluator('hyq')
-    job = ev.fws_job(ev.evaluate(ev.standing_state(), fws=False))
-    ref = compute_fws(*job)
-    errors: list[str] = []
-    worker = FwsWorker(errors.append)
-    try:
-        starting = [worker.submit(job) for _ in range(60)]
-        sent = sum(h._future is not None for h in starting)
-        assert sent == 1 or worker._answered > 0 and sent <= MAX_IN_FLIGHT + 1, sent
-        starting[0]._future.result(60.0)
-        ready = [worker.submit(job) for _ in range(60)]
-        in_flight = sum(h._future is not None for h in ready)
-        assert 1 <= in_flight < 30, in_flight   # the limit, plus slots freed by answers meanwhile
-        for h in starting + ready:
-            part = h.result()
-            assert np.array_equal(part[0].A, ref[0].A) and part[1].margin == ref[1].margin
-        assert worker.alive and not errors
-    finally:
-        worker.close()
+    (job, ref), (worker, errors) = standing_job, worker
+    starting = [worker.submit(job) for _ in range(60)]
+    sent = sum(h._future is not None for h in starting)
+    assert sent == 1 or worker._answered > 0 and sent <= MAX_IN_FLIGHT + 1, sent
+    starting[0]._future.result(60.0)
+    ready = [worker.submit(job) for _ in range(60)]
+    in_flight = sum(h._future is not None for h in ready)
+    assert 1 <= in_flight < 30, in_flight   # the limit, plus slots freed by answers meanwhile
+    for h in starting + ready:
+        part = h.result()
+        assert np.array_equal(part[0].A, ref[0].A) and part[1].margin == ref[1].margin
+    assert worker.alive and not errors
 
 
-def test_a_late_worker_is_not_waited_for_beyond_the_deadline_and_gives_the_same_numbers():
+def test_a_late_worker_is_not_waited_for_beyond_the_deadline_and_gives_the_same_numbers(
+        standing_job, worker):
     # A worker that has answered once, then is not scheduled (stopped here with SIGSTOP, as
     # when it runs at its lower priority on a CPU busy with the processes feeding the node):
     # the caller's deadline passes, the job is computed by the caller with the same numbers
     # and counted late, not as an error. Without a deadline the caller waited up to 10 s.
-    import time
-    from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator
-    ev = FeasibilityEvaluator('hyq')
-    job = ev.fws_job(ev.evaluate(ev.standing_state(), fws=False))
-    ref = compute_fws(*job)
-    errors: list[str] = []
-    worker = FwsWorker(errors.append)
+    (job, ref), (worker, errors) = standing_job, worker
+    worker.submit(job)._future.result(60.0)            # started and answering
+    os.kill(worker.pid, signal.SIGSTOP)
     try:
-        worker.submit(job)._future.result(60.0)            # started and answering
-        os.kill(worker.pid, signal.SIGSTOP)
-        try:
-            handle = worker.submit(job)
-            assert handle._future is not None              # sent to the stopped worker
-            t0 = time.monotonic()
-            part = handle.result(timeout=0.05)
-            waited = time.monotonic() - t0
-        finally:
-            os.kill(worker.pid, signal.SIGCONT)
-        assert 0.05 <= waited < 5.0, waited                # the deadline, then one FWS here
-        assert np.array_equal(part[0].A, ref[0].A) and part[1].margin == ref[1].margin
-        assert worker.late == 1 and not errors, errors
-        # Resumed, the worker answers the late job (dropped) and then the next ones.
-        again = worker.submit(job)
-        again._future.result(60.0)
-        assert again.result(timeout=0.0)[1].margin == ref[1].margin
-        assert worker.late == 1 and worker.alive and not errors
+        handle = worker.submit(job)
+        assert handle._future is not None              # sent to the stopped worker
+        t0 = time.monotonic()
+        part = handle.result(timeout=0.05)
+        waited = time.monotonic() - t0
     finally:
-        worker.close()
+        os.kill(worker.pid, signal.SIGCONT)
+    assert 0.05 <= waited < 5.0, waited                # the deadline, then one FWS here
+    assert np.array_equal(part[0].A, ref[0].A) and part[1].margin == ref[1].margin
+    assert worker.late == 1 and not errors, errors
+    # Resumed, the worker answers the late job (dropped) and then the next ones.
+    again = worker.submit(job)
+    again._future.result(60.0)
+    assert again.result(timeout=0.0)[1].margin == ref[1].margin
+    assert worker.late == 1 and worker.alive and not errors
 
 
 def test_the_pipeline_does_not_wait_for_a_stopped_worker(bag_msgs, lagged):
     # The bag through a pipeline whose worker is stopped after 1500 joint states: every
     # joint state is answered without waiting for it beyond fws_lag_s + FWS_LATE_GRACE_S of
     # wall time per job, and the reports are those with the FWS computed in the process.
-    import time
     from awp_ros.ros.pipeline import FWS_LATE_GRACE_S
     reports, _ = lagged
     errors: list[str] = []
