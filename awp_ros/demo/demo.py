@@ -44,6 +44,7 @@ from awp_ros.demo.table import (comparison_lines, intended_windows, QuasiStatic,
                                 TABLE_HEADER, TABLE_LEGEND)
 from awp_ros.errors import AwpError, BagError, ConfigError
 from awp_ros.gait.bag import default_bag_path
+from awp_ros.node.dds import use_deep_queues
 from awp_ros.node.launcher import start_node, stop_node
 from awp_ros.robot.config import find_parameters_file, load_config, srdf_standing_posture
 
@@ -123,6 +124,12 @@ def _run(args) -> int:
         lambda text: (out.write(text + '\n'), out.flush()))
     say(f'{PROG}: awp_node (pid {proc.pid}) on {params.name}; input {bag} '
         f'({info.duration_s:.1f} s, {info.topics["/joint_states"].count} joint states)')
+    # The player's publishers and the recorder's subscriptions hold the whole bag: in this one
+    # process the recorder may fall far behind the player (a CI run on a slow machine recorded
+    # 4748 of 5801 joint states with 1000/2000-deep queues); readers deeper than Fast DDS's
+    # default 5000 samples need its profile.
+    depth = max(2000, max(t.count for t in info.topics.values()) + 1000)
+    use_deep_queues()
     rclpy.init()
     node = rclpy.create_node('awp_demo_recorder')
     executor = SingleThreadedExecutor()
@@ -143,7 +150,7 @@ def _run(args) -> int:
         if not outputs:
             raise _NodeFailed(proc, out_dir / 'awp_node.log')
         with BagWriter(out_bag, compress=True) as writer:
-            rec = Recorder(node, writer, rate=args.rate, depth=2000)
+            rec = Recorder(node, writer, rate=args.rate, depth=depth)
             skip = () if args.record_all else tuple(
                 f'/{args.node_name}/{name}' for name in ('awp', 'fwp', 'leg_polytopes'))
             for topic, msgtype in {**inputs, **outputs}.items():
@@ -162,7 +169,7 @@ def _run(args) -> int:
             try:
                 play_bag(bag, rate=args.rate, topics=list(inputs), wait_s=10.0,
                          wait_topics=['/joint_states'], duration_s=args.duration,
-                         progress=False)
+                         progress=False, qos_depth=depth)
                 deadline = time.monotonic() + args.drain_timeout
                 while len(rec.reports) < expected and time.monotonic() < deadline \
                         and proc.poll() is None:
