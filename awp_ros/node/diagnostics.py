@@ -166,6 +166,8 @@ class NodeDiagnostics:
         self.markers_skipped = 0
         #: Lagged FWS jobs the worker process answered too late, computed in the node (total).
         self.fws_worker_late = 0
+        #: Whether the last evaluation status built said the node is falling behind.
+        self.falling_behind = False
         self.last_output_error = ''
 
     # -- recording (per message) -----------------------------------------------------------
@@ -451,6 +453,8 @@ class NodeDiagnostics:
              'the wait by load shedding; fws_lag_s takes the FWS off the loop)'),
         ]
         texts = [text for condition, text in candidates if condition]
+        self.falling_behind = any(condition for condition, text in candidates
+                                  if text.startswith('falling behind'))
         if self.model_error or period[_ERROR] or self.output_errors_period:
             level = DiagnosticStatus.ERROR
         elif texts:

@@ -515,11 +515,10 @@ class AwpNode(Node):
         arr = self.diagnostics.build(self.get_clock().now().to_msg(), time.monotonic())
         self.pub_diag.publish(arr)
         # Falling behind is logged when it starts and when it ends, not every period.
-        evaluation = arr.status[1].message
-        behind = evaluation.startswith('falling behind') or '; falling behind' in evaluation
+        behind = self.diagnostics.falling_behind
         if behind != self._behind:
             if behind:
-                self.get_logger().warning(f'/diagnostics: {evaluation}')
+                self.get_logger().warning(f'/diagnostics: {arr.status[1].message}')
             else:
                 self.get_logger().info('keeping up with joint_states again (/diagnostics)')
             self._behind = behind

@@ -52,6 +52,7 @@ def test_stale_lost_invalid_and_falling_behind_warn():
     assert inputs.level == DiagnosticStatus.WARN
     assert 'stale: contacts' in inputs.message and 'lost: joint_states (3)' in inputs.message
     assert evaluation.level == DiagnosticStatus.WARN and 'falling behind' in evaluation.message
+    assert d.falling_behind
     d.received('contacts', 1.5)
     d.received('joint_states', 1.5)
     d.evaluated(2, 1e-4, None, "joint_positions lacks joints ['x']")
@@ -197,3 +198,4 @@ def test_a_growing_input_queue_is_falling_behind_even_when_each_evaluation_fits(
             assert 'max_queue_delay_s' in evaluation.message
         else:
             assert evaluation.level == DiagnosticStatus.OK, evaluation.message
+        assert d.falling_behind == behind
