@@ -9,6 +9,19 @@ waits for the next one on a small wait set of the input subscriptions only, so t
 answering a stream of joint states returns to its executor (timers, parameter services)
 only once per ``budget_s``.
 
+The node's own queue: every time it looks for the next joint state, the drain first moves
+*all* joint states waiting in the DDS reader into a queue of its own (a deque, oldest first,
+at most ``max_queued``; beyond that the oldest are dropped, as DDS's keep-last history would,
+and the node counts them from the gaps in the publishers' sequence numbers), then answers the
+oldest. The DDS reader then holds only what arrived during one evaluation. With the backlog
+left in the reader, a node that fell behind fell further behind: on session 16's slow
+machine, in a 1 kHz soak, Fast DDS's receive thread went from 3 % to 41 % of a core as the
+reader's backlog grew (t = 20 s to 44 s), taking the node's main thread from 94 % to 35 %
+(README, "Once far behind, the node slows down"). A joint state the executor took is queued
+behind those already in the node's queue; a drain returning to the executor with joint states
+still queued calls ``on_pending`` (the node triggers a guard condition, whose callback runs
+the drain again), so none waits for the next message to wake the executor.
+
 Order: a joint state is handled after every contacts (and imu) message received up to the
 moment it is handled, including those that arrived just after it: messages of different
 topics travel in different DDS readers, so a contacts message published just before a joint
@@ -18,6 +31,7 @@ at its stamp (:mod:`awp_ros.ros.input_buffer`), so taking newer ones early does 
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Callable, Sequence
 from contextlib import ExitStack
 import time
@@ -47,44 +61,87 @@ class InputDrain:
     :param context: the rclpy context of the node.
     :param budget_s: longest time [s] spent in one :meth:`run` before returning to the
         executor; 0 = only the messages already queued, no waiting.
+    :param max_queued: most joint states the node's own queue holds (the node's
+        ``qos_depth``); the oldest beyond it are dropped.
     """
 
     def __init__(self, inputs: Sequence[tuple[Subscription, Handler]],
                  main: tuple[Subscription, Handler], context, *,
-                 budget_s: float = 0.02) -> None:
+                 budget_s: float = 0.02, max_queued: int = 10000) -> None:
         self._inputs = list(inputs)
         self._main = main
         self._subs = [sub for sub, _ in self._inputs] + [main[0]]
         self._context = context
         self.budget_s = budget_s
+        self.max_queued = max(1, int(max_queued))
+        #: Joint states ``(message, info)`` taken from the DDS reader, not yet answered.
+        self.queued: deque[tuple[object, dict]] = deque()
+        #: Joint states dropped from :attr:`queued` when it was full (total).
+        self.dropped = 0
         #: Called when the joint-state queue is empty, before waiting (None = nothing); when
         #: it returns True (it did some work, more remains) the queue is looked at again
         #: and it is called again instead of waiting.
         self.on_idle: Callable[[], bool | None] | None = None
+        #: Called when :meth:`run` returns with joint states still queued (None = nothing).
+        self.on_pending: Callable[[], None] | None = None
         self._wait_set = None
+
+    def push(self, message: object, info: dict) -> None:
+        """
+        Queue a joint state taken elsewhere (by the executor) behind those queued.
+
+        It came out of the DDS reader before those still in it: queued before them.
+        """
+        self.queued.append((message, info))
+        self._bound()
+
+    def queue_joint_states(self) -> int:
+        """Move the joint states waiting in the DDS reader into :attr:`queued`; return how many."""
+        sub = self._main[0]
+        queued = self.queued
+        count = 0
+        while (taken := take(sub)) is not None:
+            queued.append(taken)
+            count += 1
+        if count:
+            self._bound()
+        return count
 
     def run(self) -> int:
         """Answer joint states until none arrives within the budget; return how many."""
         end = time.monotonic() + self.budget_s
-        sub, handler = self._main
+        handler = self._main[1]
+        queued = self.queued
         count = 0
-        while True:
-            taken = take(sub)
-            if taken is not None:
-                self.take_inputs()
-                handler(*taken)
-                count += 1
-                if time.monotonic() < end:
+        try:
+            while True:
+                self.queue_joint_states()
+                if queued:
+                    taken = queued.popleft()
+                    self.take_inputs()
+                    handler(*taken)
+                    count += 1
+                    if time.monotonic() < end:
+                        continue
+                    return count
+                self.take_inputs()               # what woke the wait, if not a joint state
+                remaining = end - time.monotonic()
+                if remaining <= 0.0 or not self._context.ok():
+                    return count
+                if self.on_idle is not None and self.on_idle():   # queue empty: idle work
                     continue
-                return count
-            self.take_inputs()                   # what woke the wait, if not a joint state
-            remaining = end - time.monotonic()
-            if remaining <= 0.0 or not self._context.ok():
-                return count
-            if self.on_idle is not None and self.on_idle():   # the queue is empty: idle work
-                continue
-            if not self._wait(remaining):
-                return count
+                if not self._wait(remaining):
+                    return count
+        finally:
+            if queued and self.on_pending is not None:
+                self.on_pending()
+
+    def _bound(self) -> None:
+        """Drop the oldest queued joint states beyond :attr:`max_queued`."""
+        queued = self.queued
+        while len(queued) > self.max_queued:
+            queued.popleft()
+            self.dropped += 1
 
     def take_inputs(self) -> int:
         """Hand every queued contacts (and imu) message to its handler; return how many."""

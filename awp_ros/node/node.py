@@ -49,12 +49,15 @@ Throughput: after answering a joint state the node takes the next ones straight 
 input queues (:class:`awp_ros.node.input_drain.InputDrain`), waiting for them on a wait set of its
 inputs only, and returns to the executor (timers, parameter services) every
 ``drain_budget_s`` (20 ms): the executor's ~0.2 ms per message is paid ~50 times a second
-instead of 1000.
+instead of 1000. Joint states waiting in the DDS reader are moved into the node's own queue
+(at most ``qos_depth``) each time it looks for the next one, so a backlog does not slow
+Fast DDS's reception down.
 
 Nothing is lost silently. A node slower than its input lets the reliable input queue
-grow (``qos_depth`` joint states); beyond it DDS replaces the oldest queued joint states
-without any event, so the node counts the gaps in each publisher's sequence numbers: the
-next report carries a warning with the count and ``/diagnostics`` the total. With
+grow (``qos_depth`` joint states); beyond it the oldest queued joint states are dropped
+without any event (by DDS, or by the node's own queue), so the node counts the gaps in each
+publisher's sequence numbers: the next report carries a warning with the count and
+``/diagnostics`` the total. With
 ``max_queue_delay_s`` > 0 the node sheds load instead: a joint state that waited longer
 than that in the queue is answered at once with a ``STATUS_STALE_INPUT`` report (not
 evaluated), so every joint state still gets its report and latency stays bounded.
@@ -264,7 +267,11 @@ class AwpNode(Node):
                                     (self._on_odometry, p.use_odometry)) if on]
         self.drain = InputDrain(list(zip(self.subscriptions_[:-1], handlers)),
                                 (self.subscriptions_[-1], self._handle_joint_state),
-                                self.context, budget_s=self.parameters.value('drain_budget_s'))
+                                self.context, budget_s=self.parameters.value('drain_budget_s'),
+                                max_queued=depth)
+        # Joint states left in the drain's own queue wake the executor (input_drain.py).
+        self.pending_guard = self.create_guard_condition(self._on_pending)
+        self.drain.on_pending = self.pending_guard.trigger
         self.sub_reference = self.create_subscription(
             WrenchStamped, '~/wrench_reference', self._on_wrench_reference, qos_big)
         if p.fws_lag_s > 0.0:       # started now: it warms up before the first joint state
@@ -358,9 +365,11 @@ class AwpNode(Node):
         self.pub_reference.publish(report)
 
     def _on_joint_state(self, data: bytes, info: dict) -> None:
+        self.drain.push(data, info)     # behind those the drain took from the reader before
+        self._on_pending()
+
+    def _on_pending(self) -> None:
         try:
-            self.drain.take_inputs()
-            self._handle_joint_state(data, info)
             self.drain.run()
         finally:
             if self.query_gate is not None:     # back to the executor: the node is idle

@@ -154,8 +154,12 @@ def test_load_shedding_answers_every_joint_state(ros_env):
     # Answered at once: a shed joint state costs a small part of an evaluation, and the
     # backlog drains far sooner than evaluating every joint state would take (the
     # latencies here are at this process's reception, so its own lag is in them too).
+    # (A shed report is still a report built and stamped: 0.22 ms against an evaluation's
+    # 1.54 ms on session 16's slow machine, where 0.1 x failed once; an evaluation with the
+    # FWS is several times that, so a quarter still tells a shed joint state from one
+    # evaluated.)
     eval_s = float(np.median([m.compute_time for m in evaluated]))
-    assert np.median([m.compute_time for m in shed]) < 0.1 * eval_s
+    assert np.median([m.compute_time for m in shed]) < 0.25 * eval_s
     unshed_s = r.sent * eval_s
     assert r.drain_s < 0.25 * unshed_s, (r.drain_s, unshed_s)
     assert r.latency_after_warmup_ms['p50'] * 1e-3 < 0.25 * unshed_s, r.latency_after_warmup_ms
@@ -170,6 +174,9 @@ def test_a_node_slower_than_its_input_says_it_is_falling_behind(ros_env):
     print('\n' + r.table())
     assert r.node_alive
     assert r.sent == 1000 and r.reports == r.sent and r.missing == 0 and r.duplicates == 0
+    # The backlog went through the node's own queue in publication order: no sequence gap
+    # (a joint state the executor took, queued ahead of older ones, would make some).
+    assert r.node_missing_from_sequence == 0 and r.node_lost_total == 0
     queue = r.node_queue
     assert queue['periods'] >= 2 and queue['falling_behind'] >= 1, queue
     assert 'in the input queue: the node answers fewer than arrive' in \

@@ -150,3 +150,40 @@ def test_idle_work_runs_in_pieces_between_joint_states_and_never_delays_one(peer
     # Once the work was done (the last piece said so), the drain waited out its budget.
     assert log[-1] == 'piece' and 'nothing' not in log
     drain.close()
+
+
+def test_the_reader_is_emptied_into_the_node_queue_whose_oldest_beyond_its_bound_are_dropped(
+        peers):
+    # Each look for the next joint state moves all those waiting in the DDS reader into the
+    # drain's own queue (max_queued, oldest dropped beyond it: their sequence numbers go
+    # missing, which the node counts); a run that returns with some still queued says so
+    # (on_pending: the node's guard condition), and a message pushed by the executor waits
+    # behind them.
+    sub_node = peers[1]
+    log, pending = [], []
+    js_sub, js_pub = _joint_states(peers)
+    for i in range(100):
+        msg = JointState()
+        msg.header.stamp.nanosec = i
+        js_pub.publish(msg)
+    time.sleep(1.0)                                     # all 100 delivered
+    drain = InputDrain([], (js_sub, lambda m, info: log.append(
+                           (m.header.stamp.nanosec, info['publication_sequence_number']))),
+                       sub_node.context, budget_s=0.0, max_queued=30)
+    drain.on_pending = lambda: pending.append(len(drain.queued))
+    assert drain.run() == 1                             # budget 0: one answered
+    assert [s for s, _ in log] == [70] and drain.dropped == 70
+    assert pending == [29] and len(drain.queued) == 29
+    assert take(js_sub) is None                         # the reader holds none of them
+    for i in range(100, 105):
+        msg = JointState()
+        msg.header.stamp.nanosec = i
+        js_pub.publish(msg)
+    time.sleep(1.0)
+    drain.push(*take(js_sub))               # as the executor does: 100, before 101 to 104
+    drain.budget_s, drain.max_queued = 0.5, 1000
+    assert drain.run() == 34                            # then the queue ran empty
+    assert [s for s, _ in log] == list(range(70, 105))
+    assert [q for _, q in log] == list(range(log[0][1], log[0][1] + 35))
+    assert pending == [29] and not drain.queued         # empty: not called again
+    drain.close()
