@@ -19,8 +19,9 @@ machine, in a 1 kHz soak, Fast DDS's receive thread went from 3 % to 41 % of a c
 reader's backlog grew (t = 20 s to 44 s), taking the node's main thread from 94 % to 35 %
 (README, "Once far behind, the node slows down"). A joint state the executor took is queued
 behind those already in the node's queue; a drain returning to the executor with joint states
-still queued calls ``on_pending`` (the node triggers a guard condition, whose callback runs
-the drain again), so none waits for the next message to wake the executor.
+still queued calls ``on_pending`` (the node triggers a guard condition, or with the
+EventsExecutor, which has none, resets a timer; its callback runs the drain again), so none
+waits for the next message to wake the executor.
 
 Order: a joint state is handled after every contacts (and imu) message received up to the
 moment it is handled, including those that arrived just after it: messages of different

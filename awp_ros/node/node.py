@@ -108,6 +108,9 @@ __all__ = ['AwpNode', 'SUBSCRIBERS_PERIOD_S', 'main']
 
 #: How often [s] the node asks which outputs have subscribers (:meth:`AwpNode._subscribed`).
 SUBSCRIBERS_PERIOD_S = 0.02
+#: Period [s] of the timer that wakes the EventsExecutor for queued joint states (it has no
+#: guard conditions); the timer runs only while some are queued.
+PENDING_TIMER_S = 1e-4
 #: The timings [ms] of an FWS computed in the loop (its H-rep, margins and feasible region),
 #: whose sum goes to ``/diagnostics`` (``FWS in the loop max [ms]``).
 FWS_TIMINGS = ('fws', 'fws_directional', 'fws_margin', 'feasible_region')
@@ -269,9 +272,16 @@ class AwpNode(Node):
                                 (self.subscriptions_[-1], self._handle_joint_state),
                                 self.context, budget_s=self.parameters.value('drain_budget_s'),
                                 max_queued=depth)
-        # Joint states left in the drain's own queue wake the executor (input_drain.py).
-        self.pending_guard = self.create_guard_condition(self._on_pending)
-        self.drain.on_pending = self.pending_guard.trigger
+        # Joint states left in the drain's own queue wake the executor (input_drain.py): a
+        # guard condition, or with the EventsExecutor (which has none) a timer, reset when
+        # they are left and cancelled when it fires.
+        if with_info:
+            self.pending_guard = self.create_guard_condition(self._on_pending)
+            self.drain.on_pending = self.pending_guard.trigger
+        else:
+            self.pending_timer = self.create_timer(PENDING_TIMER_S, self._on_pending_timer)
+            self.pending_timer.cancel()
+            self.drain.on_pending = self.pending_timer.reset
         self.sub_reference = self.create_subscription(
             WrenchStamped, '~/wrench_reference', self._on_wrench_reference, qos_big)
         if p.fws_lag_s > 0.0:       # started now: it warms up before the first joint state
@@ -374,6 +384,10 @@ class AwpNode(Node):
         finally:
             if self.query_gate is not None:     # back to the executor: the node is idle
                 self.query_gate.resume()
+
+    def _on_pending_timer(self) -> None:
+        self.pending_timer.cancel()             # reset again if joint states are left
+        self._on_pending()
 
     def _on_idle(self) -> bool:
         """

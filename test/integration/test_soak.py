@@ -187,6 +187,19 @@ def test_a_node_slower_than_its_input_says_it_is_falling_behind(ros_env):
     assert "the node's input queue (its /diagnostics): 'falling behind' in " in r.table()
 
 
+def test_the_events_executor_answers_every_joint_state_of_a_backlog(ros_env):
+    # executor: events (rclpy's EventsExecutor, which has no guard conditions): a drain that
+    # returns to the executor with joint states in the node's own queue wakes it by a timer.
+    # Overloaded on purpose (the FWS every cycle) so that the queue is never empty when the
+    # drain's budget ends; the stream stops, and only that timer can answer the rest.
+    r = run_soak(500.0, 2.0, env=ros_env, warmup_s=0.4, sample_period_s=0.25,
+                 stall_timeout_s=5.0, params={'executor': 'events', 'fws_rate_hz': 0.0})
+    assert r.node_alive
+    assert r.sent == 1000 and r.reports == r.sent and r.missing == 0 and r.duplicates == 0
+    assert set(r.status_counts) <= {'ok', 'warning'}, r.status_counts
+    assert r.latency_ms['max'] > 100.0, r.latency_ms        # a backlog there was
+
+
 @pytest.mark.parametrize('worker', [True, False])
 def test_the_fws_off_the_loop_comes_lagged_by_stamps_over_dds(ros_env, worker):
     # fws_lag_s: the node computes the FWS in its worker process (fws_worker) or in steps
