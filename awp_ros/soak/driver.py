@@ -55,6 +55,7 @@ def drive(*, rate_hz: float, duration_s: float, robot: str, namespace: str,
     """
     import rclpy
     from awp_ros_msgs.msg import ContactState
+    from rclpy.qos import DurabilityPolicy
     from sensor_msgs.msg import JointState
 
     from awp_ros.gait.generator import generate_gait
@@ -75,7 +76,11 @@ def drive(*, rate_hz: float, duration_s: float, robot: str, namespace: str,
     ns = namespace.rstrip('/')
     qos = Probe.qos(depth)
     js_pub = node.create_publisher(JointState, f'{ns}/joint_states', qos) if send_js else None
-    c_pub = node.create_publisher(ContactState, f'{ns}/contacts', qos) if send_c else None
+    # Transient local: matches the node's contacts subscription whether it is volatile or
+    # transient local (contacts_durability); a volatile one would not match the latter.
+    c_qos = Probe.qos(depth)
+    c_qos.durability = DurabilityPolicy.TRANSIENT_LOCAL
+    c_pub = node.create_publisher(ContactState, f'{ns}/contacts', c_qos) if send_c else None
     pubs = [p for p in (js_pub, c_pub) if p is not None]
     wait_until(lambda: all(p.get_subscription_count() for p in pubs), match_timeout_s,
                'awp_node to subscribe')

@@ -187,6 +187,17 @@ def test_a_node_slower_than_its_input_says_it_is_falling_behind(ros_env):
     assert "the node's input queue (its /diagnostics): 'falling behind' in " in r.table()
 
 
+def test_the_soak_drives_a_node_whose_contacts_are_transient_local(ros_env):
+    # contacts_durability: transient_local. The driver's contacts publisher is transient local,
+    # which matches both durabilities (a volatile one never matched this node: the driver
+    # timed out waiting for it to subscribe).
+    r = run_soak(200.0, 1.0, env=ros_env, warmup_s=0.2, sample_period_s=0.25,
+                 params={'contacts_durability': 'transient_local'})
+    assert r.node_alive
+    assert r.sent == 200 and r.reports == r.sent and r.missing == 0 and r.duplicates == 0
+    assert set(r.status_counts) <= {'ok', 'warning'}, r.status_counts
+
+
 def test_the_events_executor_answers_every_joint_state_of_a_backlog(ros_env):
     # executor: events (rclpy's EventsExecutor, which has no guard conditions): a drain that
     # returns to the executor with joint states in the node's own queue wakes it by a timer.
