@@ -437,6 +437,9 @@ class NodeDiagnostics:
         n = int(period.sum())
         period_ms = 1e3 / input_rate if input_rate > 0.0 else float('inf')
         cut = _REASON_CHARS
+        slow = c50 > period_ms                  # each evaluation longer than the period
+        queued_long = q50 > max(FALLING_BEHIND_PERIODS * period_ms, FALLING_BEHIND_MS)
+        self.falling_behind = bool(slow or queued_long)
         candidates = [   # (condition, message), in order
             (self.model_error, self.model_error[:cut]),
             (bad, f'{bad} of {n} reports not evaluated; last: {self.last_reason[:cut]}'),
@@ -445,16 +448,14 @@ class NodeDiagnostics:
             (warned, f'{warned} of {n} reports with warnings; last: {self.last_warning[:cut]}'),
             (self.output_errors_period, f'{self.output_errors_period} outputs not built; '
                                         f'last: {self.last_output_error[:cut]}'),
-            (c50 > period_ms, f'falling behind: compute time p50 {c50:.2f} ms > joint_states '
-                              f'period {period_ms:.2f} ms'),
-            (q50 > max(FALLING_BEHIND_PERIODS * period_ms, FALLING_BEHIND_MS),
-             f'falling behind: joint states waited {q50:.1f} ms (p50), up to {qmax:.0f} ms, in '
-             'the input queue: the node answers fewer than arrive (max_queue_delay_s bounds '
-             'the wait by load shedding; fws_lag_s takes the FWS off the loop)'),
+            (slow, f'falling behind: compute time p50 {c50:.2f} ms > joint_states '
+                   f'period {period_ms:.2f} ms'),
+            (queued_long, f'falling behind: joint states waited {q50:.1f} ms (p50), up to '
+                          f'{qmax:.0f} ms, in the input queue: the node answers fewer than '
+                          'arrive (max_queue_delay_s bounds the wait by load shedding; '
+                          'fws_lag_s takes the FWS off the loop)'),
         ]
         texts = [text for condition, text in candidates if condition]
-        self.falling_behind = any(condition for condition, text in candidates
-                                  if text.startswith('falling behind'))
         if self.model_error or period[_ERROR] or self.output_errors_period:
             level = DiagnosticStatus.ERROR
         elif texts:
