@@ -13,11 +13,11 @@ The node's own queue: every time it looks for the next joint state, the drain fi
 *all* joint states waiting in the DDS reader into a queue of its own (a deque, oldest first,
 at most ``max_queued``; beyond that the oldest are dropped, as DDS's keep-last history would,
 and the node counts them from the gaps in the publishers' sequence numbers), then answers the
-oldest. The DDS reader then holds only what arrived during one evaluation. With the backlog
-left in the reader, a node that fell behind fell further behind: on session 16's slow
-machine, in a 1 kHz soak, Fast DDS's receive thread went from 3 % to 41 % of a core as the
-reader's backlog grew (t = 20 s to 44 s), taking the node's main thread from 94 % to 35 %
-(README, "Once far behind, the node slows down"). A joint state the executor took is queued
+oldest. The DDS reader then holds only what arrived during one evaluation. Left in the
+reader, a backlog makes Fast DDS's receive thread costlier as it grows (a node overloaded on
+purpose at 1 kHz: 2 % of a core at 12 s, 8 % at 44 s; with this queue at most 1.7 %; README,
+"Session 17: the backlog leaves the DDS reader"), CPU a node behind needs to catch up. A
+joint state the executor took is queued
 behind those already in the node's queue; a drain returning to the executor with joint states
 still queued calls ``on_pending`` (the node triggers a guard condition, or with the
 EventsExecutor, which has none, resets a timer; its callback runs the drain again), so none

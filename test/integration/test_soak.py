@@ -154,10 +154,9 @@ def test_load_shedding_answers_every_joint_state(ros_env):
     # Answered at once: a shed joint state costs a small part of an evaluation, and the
     # backlog drains far sooner than evaluating every joint state would take (the
     # latencies here are at this process's reception, so its own lag is in them too).
-    # (A shed report is still a report built and stamped: 0.22 ms against an evaluation's
-    # 1.54 ms on session 16's slow machine, where 0.1 x failed once; an evaluation with the
-    # FWS is several times that, so a quarter still tells a shed joint state from one
-    # evaluated.)
+    # (A shed report is still a report built and stamped, whose cost does not shrink with
+    # the evaluation's on a slower machine: 0.1 x failed once there; a quarter still tells a
+    # shed joint state from one evaluated.)
     eval_s = float(np.median([m.compute_time for m in evaluated]))
     assert np.median([m.compute_time for m in shed]) < 0.25 * eval_s
     unshed_s = r.sent * eval_s
