@@ -58,6 +58,9 @@ class SoakResult:
     node_alive: bool = True
     outputs: dict = field(default_factory=dict)
     load_average: dict = field(default_factory=dict)
+    #: With ``--steal``: the emulated slower machine (:mod:`awp_ros.soak.slow_machine`),
+    #: ``steal``, ``period_s`` and the measured ``slowdown`` with its reference times [ms].
+    slow_machine: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         """Return the result as JSON-ready builtins (without the timeline)."""
@@ -68,7 +71,13 @@ class SoakResult:
     def table(self) -> str:
         """Return the timeline and the summary as a text table."""
         lines = [f'awp_node soak: {self.robot}, {self.rate_hz:g} Hz for {self.duration_s:g} s '
-                 f'(qos_depth {self.qos_depth})',
+                 f'(qos_depth {self.qos_depth})']
+        slow = self.slow_machine
+        if slow:
+            lines.append(f'on an emulated slower machine: {slow["steal"]:g} of every CPU taken '
+                         f'by real-time stealers, measured {slow["slowdown"]:.2f}x slower '
+                         f'(reference workload {slow["fast_ms"]:.1f} -> {slow["slow_ms"]:.1f} ms)')
+        lines += [
                  f'{"t [s]":>7} {"reports/s":>10} {"latency p50 [ms]":>17} '
                  f'{"latency p99 [ms]":>17} {"node CPU [%]":>13} {"node RSS [MB]":>14}']
         for row in self.timeline:

@@ -3,7 +3,7 @@ Soak test of ``awp_node``: drive it at a fixed rate for a while; count what it l
 
 ::
 
-    python -m awp_ros.soak --rate 1000 --duration 60 [--robot hyq] [--warmup 10]
+    python -m awp_ros.soak --rate 1000 --duration 60 [--robot hyq] [--warmup 10] [--steal 0.4]
 
 Three processes on one ROS domain (``ROS_DOMAIN_ID``; discovery kept on this machine with
 ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` unless set otherwise):
@@ -34,6 +34,10 @@ drain (a node slower than the input rate answers late, from its reliable queue o
 ``qos_depth`` joint states, but answers). It prints a table and, as its last line, one JSON
 object.
 
+With ``--steal 0.4`` the whole soak runs on an emulated slower machine (real-time threads take
+that share of every CPU, :mod:`awp_ros.soak.slow_machine`); the slowdown, measured on entry,
+is printed and goes to the JSON (``slow_machine``).
+
 The helpers (:class:`Probe`, :func:`start_node`, :class:`ProcessMonitor`,
 :func:`run_soak`) are used by the tests too.
 """
@@ -41,6 +45,7 @@ The helpers (:class:`Probe`, :func:`start_node`, :class:`ProcessMonitor`,
 from __future__ import annotations
 
 import argparse
+from contextlib import ExitStack
 import json
 import os
 from pathlib import Path
@@ -51,7 +56,7 @@ import time
 
 import numpy as np
 
-from awp_ros.errors import ProcessError
+from awp_ros.errors import InputError, ProcessError
 from awp_ros.node.dds import use_deep_queues
 from awp_ros.node.launcher import ros_env, start_node, stop_node
 from awp_ros.ros.cdr import report_stamp_status
@@ -60,6 +65,7 @@ from awp_ros.soak.monitor import ProcessMonitor
 from awp_ros.soak.probe import Probe, wait_until
 from awp_ros.soak.result import (fill_node_diagnostics, fill_timeline, fill_usage, percentiles,
                                  SoakResult)
+from awp_ros.soak.slow_machine import SlowMachine
 
 __all__ = ['main', 'report_stamp_status', 'run_soak']
 
@@ -81,7 +87,7 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
              contacts_rate_hz: float = 100.0, sample_period_s: float = 1.0,
              drain_timeout_s: float | None = None, stall_timeout_s: float = 20.0,
              params: dict | None = None, timeline_step_s: float | None = None,
-             subscribe: tuple[str, ...] = ()) -> SoakResult:
+             subscribe: tuple[str, ...] = (), steal: float = 0.0) -> SoakResult:
     """
     Run one soak (see the module docstring) and return what it measured.
 
@@ -103,10 +109,10 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     :param subscribe: outputs of the node to subscribe to as well (names of
         :data:`awp_ros.ros.cycle.OUTPUTS` other than ``report``); their counts go to
         ``result.outputs``.
+    :param steal: > 0: the whole soak on an emulated slower machine, this share of every CPU
+        taken by real-time stealers (:class:`awp_ros.soak.slow_machine.SlowMachine`; the
+        measured slowdown goes to ``result.slow_machine``).
     """
-    from awp_ros_msgs.msg import FeasibilityReport
-    from diagnostic_msgs.msg import DiagnosticArray
-
     env = ros_env() if env is None else env
     domain = int(env.get('ROS_DOMAIN_ID', '0') or 0)
     warmup_s = min(10.0, duration_s / 5) if warmup_s is None else warmup_s
@@ -114,9 +120,32 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
         qos_depth = int(rate_hz * (duration_s + 10)) + 1000
     drain_timeout_s = 2 * duration_s + 30 if drain_timeout_s is None else drain_timeout_s
     result = SoakResult(robot, rate_hz, duration_s, qos_depth)
+    with ExitStack() as stack:
+        if steal > 0.0:
+            slow = stack.enter_context(SlowMachine(steal))
+            c = slow.calibration
+            result.slow_machine = {'steal': steal, 'period_s': slow.period_s,
+                                   'slowdown': round(c.slowdown, 3),
+                                   'fast_ms': round(c.fast_ms, 3),
+                                   'slow_ms': round(c.slow_ms, 3)}
+        _soak(result, rate_hz, duration_s, warmup_s, qos_depth, namespace, env, domain,
+              contacts_rate_hz, sample_period_s, drain_timeout_s, stall_timeout_s, params,
+              timeline_step_s, subscribe)
+    return result
+
+
+def _soak(result: SoakResult, rate_hz: float, duration_s: float, warmup_s: float,
+          qos_depth: int, namespace: str, env: dict, domain: int, contacts_rate_hz: float,
+          sample_period_s: float, drain_timeout_s: float, stall_timeout_s: float,
+          params: dict | None, timeline_step_s: float | None,
+          subscribe: tuple[str, ...]) -> None:
+    """Run the soak of :func:`run_soak` and fill ``result``."""
+    from awp_ros_msgs.msg import FeasibilityReport
+    from diagnostic_msgs.msg import DiagnosticArray
+
     ns = namespace.rstrip('/')
     node_params = {'qos_depth': qos_depth, **(params or {})}
-    proc = start_node(env=env, robot=robot, namespace=ns, params=node_params)
+    proc = start_node(env=env, robot=result.robot, namespace=ns, params=node_params)
     probe = Probe(domain, 'awp_soak_probe')
     n_max = int(rate_hz * duration_s) + 10
     stamps = np.zeros(n_max + 1000, dtype=np.int64)
@@ -152,7 +181,7 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
         wait_until(lambda: len(diag) > 0, 60.0, 'awp_node to spin (its first /diagnostics)')
         time.sleep(0.5)
         monitor = ProcessMonitor(proc.pid, sample_period_s)
-        cmd = driver_command(rate_hz, duration_s, robot=robot, namespace=ns,
+        cmd = driver_command(rate_hz, duration_s, robot=result.robot, namespace=ns,
                              stamps_out=stamps_file.name, contacts_rate_hz=contacts_rate_hz,
                              depth=n_max + 1000)
         result.load_average['before the drive'] = list(os.getloadavg())
@@ -200,7 +229,7 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     latency = (rcv - got) * 1e-6
     result.latency_ms = percentiles(latency)
     if not sent.size:
-        return result
+        return
     result.drain_s = max(0.0, (int(rcv.max()) - int(sent[-1])) * 1e-9) if n else 0.0
     warm = got >= int(sent[0]) + int(warmup_s * 1e9)
     result.latency_after_warmup_ms = percentiles(latency[warm])
@@ -213,7 +242,6 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     fill_timeline(result, samples, t_start, int(sent[0]), rcv, latency,
                   timeline_step_s or max(duration_s / 12, sample_period_s))
     fill_node_diagnostics(result, diag, probe.lock)
-    return result
 
 # -- command line --------------------------------------------------------------------------
 
@@ -240,6 +268,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--subscribe', nargs='+', default=[], choices=sorted(OUTPUT_TYPES),
                         help='also subscribe to these outputs of the node (as RViz or a '
                         'planner would; the node builds an output only for subscribers)')
+    parser.add_argument('--steal', type=float, default=0.0, metavar='SHARE',
+                        help='run on an emulated slower machine: real-time stealers take this '
+                        'share of every CPU (0.4: about 2x slower; measured and printed; '
+                        'needs root or CAP_SYS_NICE; python -m awp_ros.soak.slow_machine)')
     parser.add_argument('--drive', action='store_true', help=argparse.SUPPRESS)
     parser.add_argument('--stamps-out', help=argparse.SUPPRESS)
     parser.add_argument('--depth', type=int, default=100000, help=argparse.SUPPRESS)
@@ -254,10 +286,15 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps(summary), flush=True)
         return 0
     params = dict(p.split(':=', 1) for p in args.param)
-    result = run_soak(args.rate, args.duration, robot=args.robot, warmup_s=args.warmup,
-                      qos_depth=args.qos_depth, namespace=args.namespace,
-                      contacts_rate_hz=args.contacts_rate, sample_period_s=args.sample_period,
-                      params=params, subscribe=tuple(args.subscribe))
+    try:
+        result = run_soak(args.rate, args.duration, robot=args.robot, warmup_s=args.warmup,
+                          qos_depth=args.qos_depth, namespace=args.namespace,
+                          contacts_rate_hz=args.contacts_rate,
+                          sample_period_s=args.sample_period, params=params,
+                          subscribe=tuple(args.subscribe), steal=args.steal)
+    except (InputError, ProcessError) as exc:
+        print(f'soak: {exc}', file=sys.stderr)
+        return 2
     print(result.table())
     print(json.dumps(result.to_dict()))
     ok = result.node_alive and result.missing == 0 and result.duplicates == 0

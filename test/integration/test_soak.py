@@ -23,6 +23,7 @@ from awp_ros_msgs.msg import FeasibilityReport
 import numpy as np
 import pytest
 
+from awp_ros.errors import ProcessError
 from awp_ros.soak.monitor import children, proc_usage, ProcessMonitor
 from awp_ros.soak.probe import Probe
 from awp_ros.soak.soak import run_soak
@@ -195,6 +196,27 @@ def test_the_soak_drives_a_node_whose_contacts_are_transient_local(ros_env):
     assert r.node_alive
     assert r.sent == 200 and r.reports == r.sent and r.missing == 0 and r.duplicates == 0
     assert set(r.status_counts) <= {'ok', 'warning'}, r.status_counts
+
+
+def test_a_soak_on_an_emulated_slower_machine_records_its_measured_slowdown(ros_env):
+    # --steal 0.4: real-time stealers take 0.4 of every CPU for the whole soak (node, driver,
+    # subscriber); the slowdown is measured on entry and recorded, and they are gone after.
+    try:
+        r = run_soak(200.0, 1.0, env=ros_env, warmup_s=0.2, sample_period_s=0.25, steal=0.4)
+    except ProcessError as exc:
+        if 'refused' not in str(exc):
+            raise
+        pytest.skip(f'no real-time priority here: {exc}')
+    assert r.node_alive
+    assert r.sent == 200 and r.reports == r.sent and r.missing == 0 and r.duplicates == 0
+    slow = r.slow_machine
+    assert slow['steal'] == 0.4 and 1.3 < slow['slowdown'] < 3.5, slow
+    assert slow['slow_ms'] > slow['fast_ms'] > 0.0
+    assert 'on an emulated slower machine: 0.4 of every CPU' in r.table()
+    assert r.to_dict()['slow_machine'] == slow
+    stealers = subprocess.run(['pgrep', '-f', 'awp_ros.soak.slow_machine --stealer'],
+                              capture_output=True, text=True).stdout.split()
+    assert stealers == [], 'stealers left running after the soak'
 
 
 def test_the_events_executor_answers_every_joint_state_of_a_backlog(ros_env):
