@@ -77,9 +77,8 @@ class SoakResult:
             lines.append(f'on an emulated slower machine: {slow["steal"]:g} of every CPU taken '
                          f'by real-time stealers, measured {slow["slowdown"]:.2f}x slower '
                          f'(reference workload {slow["fast_ms"]:.1f} -> {slow["slow_ms"]:.1f} ms)')
-        lines += [
-                 f'{"t [s]":>7} {"reports/s":>10} {"latency p50 [ms]":>17} '
-                 f'{"latency p99 [ms]":>17} {"node CPU [%]":>13} {"node RSS [MB]":>14}']
+        lines.append(f'{"t [s]":>7} {"reports/s":>10} {"latency p50 [ms]":>17} '
+                     f'{"latency p99 [ms]":>17} {"node CPU [%]":>13} {"node RSS [MB]":>14}')
         for row in self.timeline:
             lines.append(f'{row["t"]:7.1f} {row["reports_per_s"]:10.0f} '
                          f'{row["latency_p50_ms"]:17.1f} {row["latency_p99_ms"]:17.1f} '

@@ -178,6 +178,13 @@ class SlowMachine:
     def __exit__(self, *exc) -> None:
         self.stop()
 
+    def summary(self) -> dict:
+        """Return the settings and the measured slowdown as JSON-ready builtins."""
+        c = self.calibration or Calibration(float('nan'), float('nan'))
+        return {'steal': self.steal, 'period_s': self.period_s,
+                'slowdown': round(c.slowdown, 3), 'fast_ms': round(c.fast_ms, 3),
+                'slow_ms': round(c.slow_ms, 3)}
+
     def describe(self) -> str:
         """Return one line: the stealers and, once measured, the slowdown."""
         text = (f'slow_machine: on CPUs {self.cpus}, a SCHED_FIFO stealer busy '

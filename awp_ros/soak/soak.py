@@ -34,9 +34,9 @@ drain (a node slower than the input rate answers late, from its reliable queue o
 ``qos_depth`` joint states, but answers). It prints a table and, as its last line, one JSON
 object.
 
-With ``--steal 0.4`` the whole soak runs on an emulated slower machine (real-time threads take
-that share of every CPU, :mod:`awp_ros.soak.slow_machine`); the slowdown, measured on entry,
-is printed and goes to the JSON (``slow_machine``).
+With ``--steal 0.4`` the drive runs on an emulated slower machine (real-time threads take that
+share of every CPU, :mod:`awp_ros.soak.slow_machine`, from the moment the node spins); the
+slowdown, measured then, is printed and goes to the JSON (``slow_machine``).
 
 The helpers (:class:`Probe`, :func:`start_node`, :class:`ProcessMonitor`,
 :func:`run_soak`) are used by the tests too.
@@ -45,7 +45,6 @@ The helpers (:class:`Probe`, :func:`start_node`, :class:`ProcessMonitor`,
 from __future__ import annotations
 
 import argparse
-from contextlib import ExitStack
 import json
 import os
 from pathlib import Path
@@ -109,10 +108,14 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     :param subscribe: outputs of the node to subscribe to as well (names of
         :data:`awp_ros.ros.cycle.OUTPUTS` other than ``report``); their counts go to
         ``result.outputs``.
-    :param steal: > 0: the whole soak on an emulated slower machine, this share of every CPU
-        taken by real-time stealers (:class:`awp_ros.soak.slow_machine.SlowMachine`; the
-        measured slowdown goes to ``result.slow_machine``).
+    :param steal: > 0: the drive on an emulated slower machine, this share of every CPU
+        taken by real-time stealers from the moment the node spins until it is stopped
+        (:class:`awp_ros.soak.slow_machine.SlowMachine`; the slowdown, measured then on the
+        idle node, goes to ``result.slow_machine``).
     """
+    from awp_ros_msgs.msg import FeasibilityReport
+    from diagnostic_msgs.msg import DiagnosticArray
+
     env = ros_env() if env is None else env
     domain = int(env.get('ROS_DOMAIN_ID', '0') or 0)
     warmup_s = min(10.0, duration_s / 5) if warmup_s is None else warmup_s
@@ -120,32 +123,10 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
         qos_depth = int(rate_hz * (duration_s + 10)) + 1000
     drain_timeout_s = 2 * duration_s + 30 if drain_timeout_s is None else drain_timeout_s
     result = SoakResult(robot, rate_hz, duration_s, qos_depth)
-    with ExitStack() as stack:
-        if steal > 0.0:
-            slow = stack.enter_context(SlowMachine(steal))
-            c = slow.calibration
-            result.slow_machine = {'steal': steal, 'period_s': slow.period_s,
-                                   'slowdown': round(c.slowdown, 3),
-                                   'fast_ms': round(c.fast_ms, 3),
-                                   'slow_ms': round(c.slow_ms, 3)}
-        _soak(result, rate_hz, duration_s, warmup_s, qos_depth, namespace, env, domain,
-              contacts_rate_hz, sample_period_s, drain_timeout_s, stall_timeout_s, params,
-              timeline_step_s, subscribe)
-    return result
-
-
-def _soak(result: SoakResult, rate_hz: float, duration_s: float, warmup_s: float,
-          qos_depth: int, namespace: str, env: dict, domain: int, contacts_rate_hz: float,
-          sample_period_s: float, drain_timeout_s: float, stall_timeout_s: float,
-          params: dict | None, timeline_step_s: float | None,
-          subscribe: tuple[str, ...]) -> None:
-    """Run the soak of :func:`run_soak` and fill ``result``."""
-    from awp_ros_msgs.msg import FeasibilityReport
-    from diagnostic_msgs.msg import DiagnosticArray
-
+    slow = SlowMachine(steal) if steal > 0.0 else None
     ns = namespace.rstrip('/')
     node_params = {'qos_depth': qos_depth, **(params or {})}
-    proc = start_node(env=env, robot=result.robot, namespace=ns, params=node_params)
+    proc = start_node(env=env, robot=robot, namespace=ns, params=node_params)
     probe = Probe(domain, 'awp_soak_probe')
     n_max = int(rate_hz * duration_s) + 10
     stamps = np.zeros(n_max + 1000, dtype=np.int64)
@@ -180,8 +161,11 @@ def _soak(result: SoakResult, rate_hz: float, duration_s: float, warmup_s: float
         # garbage, and a 2 kHz drive into a short queue lost joint states it cannot count.
         wait_until(lambda: len(diag) > 0, 60.0, 'awp_node to spin (its first /diagnostics)')
         time.sleep(0.5)
+        if slow is not None:
+            slow.start()
+            result.slow_machine = slow.summary()
         monitor = ProcessMonitor(proc.pid, sample_period_s)
-        cmd = driver_command(rate_hz, duration_s, robot=result.robot, namespace=ns,
+        cmd = driver_command(rate_hz, duration_s, robot=robot, namespace=ns,
                              stamps_out=stamps_file.name, contacts_rate_hz=contacts_rate_hz,
                              depth=n_max + 1000)
         result.load_average['before the drive'] = list(os.getloadavg())
@@ -207,6 +191,8 @@ def _soak(result: SoakResult, rate_hz: float, duration_s: float, warmup_s: float
         if probe.drain_errors:
             raise ProcessError(f'the report subscriber failed: {probe.drain_errors[0]!r}')
     finally:
+        if slow is not None:
+            slow.stop()
         if monitor is not None:
             monitor.stop()
         result.node_alive = proc.poll() is None
@@ -229,7 +215,7 @@ def _soak(result: SoakResult, rate_hz: float, duration_s: float, warmup_s: float
     latency = (rcv - got) * 1e-6
     result.latency_ms = percentiles(latency)
     if not sent.size:
-        return
+        return result
     result.drain_s = max(0.0, (int(rcv.max()) - int(sent[-1])) * 1e-9) if n else 0.0
     warm = got >= int(sent[0]) + int(warmup_s * 1e9)
     result.latency_after_warmup_ms = percentiles(latency[warm])
@@ -242,6 +228,7 @@ def _soak(result: SoakResult, rate_hz: float, duration_s: float, warmup_s: float
     fill_timeline(result, samples, t_start, int(sent[0]), rcv, latency,
                   timeline_step_s or max(duration_s / 12, sample_period_s))
     fill_node_diagnostics(result, diag, probe.lock)
+    return result
 
 # -- command line --------------------------------------------------------------------------
 

@@ -199,8 +199,9 @@ def test_the_soak_drives_a_node_whose_contacts_are_transient_local(ros_env):
 
 
 def test_a_soak_on_an_emulated_slower_machine_records_its_measured_slowdown(ros_env):
-    # --steal 0.4: real-time stealers take 0.4 of every CPU for the whole soak (node, driver,
-    # subscriber); the slowdown is measured on entry and recorded, and they are gone after.
+    # --steal 0.4: real-time stealers take 0.4 of every CPU (node, driver, subscriber) from the
+    # moment the node spins; the slowdown is measured then and recorded, and they are gone
+    # after.
     try:
         r = run_soak(200.0, 1.0, env=ros_env, warmup_s=0.2, sample_period_s=0.25, steal=0.4)
     except ProcessError as exc:
