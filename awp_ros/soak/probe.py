@@ -11,6 +11,8 @@ import threading
 import time
 import traceback
 
+from awp_ros.errors import InputError
+
 __all__ = ['Probe', 'wait_until']
 
 
@@ -77,7 +79,7 @@ class Probe:
         return self.node.create_publisher(mtype, topic, self.qos(depth))
 
     def subscribe(self, mtype, topic: str, callback=None, depth: int = 1000, *,
-                  raw: bool = False, drain: bool = False) -> list:
+                  raw: bool = False, drain: bool = False, with_info: bool = False) -> list:
         """
         Subscribe to ``topic``; return the list the messages are appended to.
 
@@ -85,12 +87,18 @@ class Probe:
             counts, or stores, big messages).
         :param drain: take the messages in a thread of their own (class docstring), on a
             node of their own that the executor does not spin.
+        :param with_info: (with ``drain``) the callback gets ``(msg, info)``, or the list
+            such pairs: ``info`` the middleware's message info, whose ``source_timestamp``
+            is when the publisher wrote the message and ``received_timestamp`` when this
+            participant's middleware received it [ns, system clock].
         """
+        if with_info and not drain:
+            raise InputError('with_info needs drain=True (the executor passes no info)')
         got: list = []
 
-        def store(msg) -> None:
+        def store(msg, info=None) -> None:
             with self.lock:
-                got.append(msg)
+                got.append(msg if info is None else (msg, info))
         handler = callback or store
         if not drain:
             self.node.create_subscription(mtype, topic, handler, self.qos(depth), raw=raw)
@@ -100,8 +108,8 @@ class Probe:
         node = rclpy.create_node(f'{self.node.get_name()}_drain{len(self._drains)}',
                                  context=self.context)
         sub = node.create_subscription(mtype, topic, handler, self.qos(depth), raw=raw)
-        loop = InputDrain([], (sub, lambda msg, _info: handler(msg)), self.context,
-                          budget_s=0.1)
+        take = handler if with_info else (lambda msg, _info: handler(msg))
+        loop = InputDrain([], (sub, take), self.context, budget_s=0.1)
 
         def run() -> None:
             try:

@@ -9,12 +9,13 @@ result's fields.
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from math import nan
 import threading
 
 import numpy as np
 
-__all__ = ['fill_node_diagnostics', 'fill_timeline', 'fill_usage', 'percentiles',
-           'SoakResult']
+__all__ = ['fill_latency_split', 'fill_node_diagnostics', 'fill_timeline', 'fill_usage',
+           'percentiles', 'SoakResult']
 
 
 @dataclass
@@ -58,6 +59,20 @@ class SoakResult:
     node_alive: bool = True
     outputs: dict = field(default_factory=dict)
     load_average: dict = field(default_factory=dict)
+    #: The latency split at the node's publication of each report (its DDS source
+    #: timestamp): ``node_publish_ms`` from the joint-state stamp to it (the joint state's
+    #: way to the node, its wait and its evaluation), ``report_transport_ms`` from it to the
+    #: subscriber's middleware receiving the report (p50 / p99 / max each).
+    node_publish_ms: dict = field(default_factory=dict)
+    report_transport_ms: dict = field(default_factory=dict)
+    #: The driver's pauses: consecutive joint states sent more than ``threshold_ms`` apart
+    #: (its process did not run; the joint states then come in a burst): ``count``,
+    #: ``max_ms``, ``threshold_ms``.
+    driver_gaps: dict = field(default_factory=dict)
+    #: The report of the largest latency: ``at_s`` (its stamp, from the drive's start),
+    #: ``latency_ms``, ``node_publish_ms``, ``transport_ms`` and ``driver_gap_ms`` (the
+    #: longest driver pause from 1 s before its stamp until its report arrived).
+    worst_report: dict = field(default_factory=dict)
     #: With ``--steal``: the emulated slower machine (:mod:`awp_ros.soak.slow_machine`),
     #: ``steal``, ``period_s`` and the measured ``slowdown`` with its reference times [ms].
     slow_machine: dict = field(default_factory=dict)
@@ -108,6 +123,21 @@ class SoakResult:
             f'{self.node_lost_total} lost (DDS events); its compute time p50 '
             f'{self.node_compute_p50_ms} ms',
         ]
+        node, net, gaps, worst = (self.node_publish_ms, self.report_transport_ms,
+                                  self.driver_gaps, self.worst_report)
+        if node:
+            lines.append(
+                f'latency split [ms]: stamp -> the node publishes p50 {node["p50"]:.1f}, p99 '
+                f'{node["p99"]:.1f}, max {node["max"]:.1f}; publication -> received by the '
+                f'subscriber\'s DDS p50 {net["p50"]:.2f}, p99 {net["p99"]:.2f}, max '
+                f'{net["max"]:.1f}; driver pauses over {gaps["threshold_ms"]:g} ms: '
+                f'{gaps["count"]} (longest {gaps["max_ms"]:.1f})')
+        if worst:
+            lines.append(
+                f'the slowest report: stamp {worst["at_s"]:.3f} s into the drive, '
+                f'{worst["latency_ms"]:.1f} ms = {worst["node_publish_ms"]:.1f} until the node '
+                f'published it + {worst["transport_ms"]:.1f} in DDS + the rest here; the '
+                f'longest driver pause around it {worst["driver_gap_ms"]:.1f} ms')
         fws = self.node_fws_in_loop
         if fws.get('count'):
             lines.append("the node's FWS in the loop (its /diagnostics): "
@@ -188,6 +218,41 @@ def fill_timeline(result: SoakResult, s: np.ndarray, t_start: float, wall0_ns: i
             'latency_p50_ms': float(np.percentile(lat, 50)) if lat.size else float('nan'),
             'latency_p99_ms': float(np.percentile(lat, 99)) if lat.size else float('nan'),
             'cpu_percent': cpu, 'rss_mb': rss})
+
+
+def fill_latency_split(result: SoakResult, stamps: np.ndarray, published: np.ndarray,
+                       received: np.ndarray, latency_ms: np.ndarray, sent: np.ndarray
+                       ) -> None:
+    """
+    Split each report's latency at the node's publication; find the driver's pauses.
+
+    All times are on the machine's system clock [ns]: ``stamps`` the joint-state stamps of
+    the reports (the driver's clock when it sent them), ``published`` the reports' DDS source
+    timestamps (when the node wrote them), ``received`` their DDS received timestamps here
+    (0: unknown, left out), ``latency_ms`` stamp -> the report's callback here; ``sent``
+    the stamps the driver sent, in order. A pause is a gap between consecutive sent stamps
+    above ``max(10 ms, 10 periods)``.
+    """
+    known = (published > 0) & (received > 0)
+    node = (published[known] - stamps[known]) * 1e-6
+    result.node_publish_ms = percentiles(node)
+    result.report_transport_ms = percentiles((received[known] - published[known]) * 1e-6)
+    gap_ms = np.diff(sent) * 1e-6
+    threshold = max(10.0, 10e3 / result.rate_hz)
+    pauses = gap_ms[gap_ms > threshold]
+    result.driver_gaps = {'count': int(pauses.size),
+                          'max_ms': float(pauses.max()) if pauses.size else 0.0,
+                          'threshold_ms': threshold}
+    if not latency_ms.size or not sent.size:
+        return
+    k = int(np.argmax(latency_ms))
+    lo, hi = stamps[k] - 1_000_000_000, stamps[k] + latency_ms[k] * 1e6
+    near = (sent[1:] >= lo) & (sent[:-1] <= hi)         # pauses overlapping [lo, hi]
+    result.worst_report = {
+        'at_s': float((stamps[k] - sent[0]) * 1e-9), 'latency_ms': float(latency_ms[k]),
+        'node_publish_ms': float((published[k] - stamps[k]) * 1e-6) if known[k] else nan,
+        'transport_ms': float((received[k] - published[k]) * 1e-6) if known[k] else nan,
+        'driver_gap_ms': float(gap_ms[near].max()) if near.any() else 0.0}
 
 
 def fill_node_diagnostics(result: SoakResult, diag: list, lock: threading.Lock) -> None:

@@ -29,10 +29,16 @@ from the joint-state stamp to the report's reception here (p50 / p99 / max, over
 whole run and after the warm-up), the node's CPU [% of one core] and RSS [MB] over time,
 the RSS growth from the end of the warm-up to the end of the drive (goal < 5 %), and the
 machine's load average before the drive and at its end (``os.getloadavg``: on a shared
-machine what else ran decides the figures). After the drive it waits for the backlog to
-drain (a node slower than the input rate answers late, from its reliable queue of
-``qos_depth`` joint states, but answers). It prints a table and, as its last line, one JSON
-object.
+machine what else ran decides the figures). The latency is split where the node publishes
+each report (the report's DDS source timestamp): from the stamp until the node published it
+(the joint state's way to the node, its wait and evaluation), and from there until this
+process's middleware received it (``node_publish_ms``, ``report_transport_ms``); with the
+driver's pauses (consecutive joint states sent more than ``max(10 ms, 10 periods)`` apart:
+its process did not run) and the slowest report's share of each (``worst_report``), a
+latency outlier is placed in the node, in DDS or in the driver. After the drive it waits for
+the backlog to drain (a node slower than the input rate answers late, from its reliable
+queue of ``qos_depth`` joint states, but answers). It prints a table and, as its last line,
+one JSON object.
 
 With ``--steal 0.4`` the drive runs on an emulated slower machine (real-time threads take that
 share of every CPU, :mod:`awp_ros.soak.slow_machine`, from the moment the node spins); the
@@ -62,8 +68,8 @@ from awp_ros.ros.cdr import report_stamp_status
 from awp_ros.soak.driver import drive, driver_command
 from awp_ros.soak.monitor import ProcessMonitor
 from awp_ros.soak.probe import Probe, wait_until
-from awp_ros.soak.result import (fill_node_diagnostics, fill_timeline, fill_usage, percentiles,
-                                 SoakResult)
+from awp_ros.soak.result import (fill_latency_split, fill_node_diagnostics, fill_timeline,
+                                 fill_usage, percentiles, SoakResult)
 from awp_ros.soak.slow_machine import SlowMachine
 
 __all__ = ['main', 'report_stamp_status', 'run_soak']
@@ -131,18 +137,21 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     n_max = int(rate_hz * duration_s) + 10
     stamps = np.zeros(n_max + 1000, dtype=np.int64)
     recv = np.zeros_like(stamps)
+    published, dds_received = np.zeros_like(stamps), np.zeros_like(stamps)
     status = np.zeros(stamps.size, dtype=np.int8)
     count = [0]
 
-    def on_report(data: bytes) -> None:
+    def on_report(data: bytes, info: dict) -> None:
         i = count[0]
         if i < stamps.size:
             recv[i] = time.time_ns()
             stamps[i], status[i] = report_stamp_status(data)
+            published[i] = info.get('source_timestamp') or 0
+            dds_received[i] = info.get('received_timestamp') or 0
         count[0] = i + 1
 
     probe.subscribe(FeasibilityReport, f'{ns}/awp_node/report', on_report,
-                    depth=max(qos_depth, n_max + 1000), raw=True, drain=True)
+                    depth=max(qos_depth, n_max + 1000), raw=True, drain=True, with_info=True)
     diag = probe.subscribe(DiagnosticArray, '/diagnostics', depth=100)
     received = {name: [0] for name in subscribe}
     for name in subscribe:
@@ -219,6 +228,7 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     result.drain_s = max(0.0, (int(rcv.max()) - int(sent[-1])) * 1e-9) if n else 0.0
     warm = got >= int(sent[0]) + int(warmup_s * 1e9)
     result.latency_after_warmup_ms = percentiles(latency[warm])
+    fill_latency_split(result, got, published[:n], dds_received[:n], latency, sent)
     # The drive window on the monitor's clock (monotonic), from the first and last stamps.
     offset = time.time_ns() * 1e-9 - time.monotonic()
     t_start, t_stop = sent[0] * 1e-9 - offset, sent[-1] * 1e-9 - offset

@@ -93,6 +93,16 @@ def test_short_soak_loses_nothing_and_rss_stays_flat(ros_env):
     assert any(name.startswith('awp_ros.node.marker_worker (pid ')
                for name in r.workers_cpu_percent), r.workers_cpu_percent
     assert r.latency_ms['p50'] > 0.0 and len(r.timeline) >= 4
+    # The split at the node's publication: both parts within the whole (one clock), the
+    # slowest report's parts add up to at most its latency.
+    assert 0.0 < r.node_publish_ms['p50'] <= r.latency_ms['p50']
+    assert 0.0 <= r.report_transport_ms['p50'] <= r.latency_ms['p50']
+    assert r.node_publish_ms['max'] <= r.latency_ms['max']
+    w = r.worst_report
+    assert w['latency_ms'] == r.latency_ms['max']
+    assert 0.0 <= w['node_publish_ms'] + w['transport_ms'] <= w['latency_ms']
+    assert r.driver_gaps['threshold_ms'] == pytest.approx(1e4 / 150.0)
+    assert 'latency split [ms]: stamp -> the node publishes p50 ' in r.table()
     assert list(r.load_average) == ['before the drive', 'at its end']
     assert all(len(v) == 3 and min(v) >= 0.0 for v in r.load_average.values())
     assert 'machine load average (1, 5, 15 min): before the drive ' in r.table()

@@ -1,10 +1,12 @@
 """The soak's DDS participant (awp_ros.soak.probe): a stream taken by a thread of its own."""
 
 import threading
+import time
 
 from awp_ros_msgs.msg import ContactState
 import pytest
 
+from awp_ros.errors import InputError
 from awp_ros.soak.probe import Probe, wait_until
 
 
@@ -56,3 +58,29 @@ def test_a_drained_handler_that_fails_is_kept_not_dropped(ros_env, capfd):
         receiver.close()
     assert [repr(e) for e in receiver.drain_errors] == ["RuntimeError('a bug in the handler')"]
     assert 'a bug in the handler' in capfd.readouterr().err
+
+
+def test_a_drained_subscription_with_info_gets_when_each_message_was_written_and_received(
+        ros_env):
+    domain = int(ros_env['ROS_DOMAIN_ID'])
+    sender, receiver = Probe(domain, 'awp_probe_info_sender'), Probe(domain, 'awp_probe_info')
+    try:
+        with pytest.raises(InputError, match='with_info needs drain=True'):
+            receiver.subscribe(ContactState, '/probe_info/contacts', with_info=True)
+        got = receiver.subscribe(ContactState, '/probe_info/contacts', depth=100, raw=True,
+                                 drain=True, with_info=True)
+        pub = sender.publisher(ContactState, '/probe_info/contacts', depth=100)
+        wait_until(lambda: pub.get_subscription_count() > 0, 30.0, 'the drained subscription')
+        written = []
+        for i in range(20):
+            written.append(time.time_ns())
+            pub.publish(ContactState(names=[f'foot_{i}']))
+            time.sleep(0.01)
+        wait_until(lambda: len(got) == 20, 30.0, '20 messages')
+    finally:
+        sender.close()
+        receiver.close()
+    for (data, info), t in zip(got, written):
+        assert isinstance(data, bytes)
+        # Written by the publisher after our clock read, received after that (one clock).
+        assert t <= info['source_timestamp'] <= info['received_timestamp'] < t + 10**9
