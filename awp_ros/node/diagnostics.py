@@ -153,6 +153,10 @@ class NodeDiagnostics:
         self.latency_ms = _Ring(ring_size)
         #: How long each joint state waited in the input queue (DDS reception to take) [ms].
         self.queue_ms = _Ring(ring_size)
+        #: How long each joint state took from its publisher's write to the node's DDS
+        #: receiving it (its DDS source and received timestamps; with a publisher on another
+        #: machine, their clocks' offset included) [ms].
+        self.transport_ms = _Ring(ring_size)
         #: Wall time of each FWS computed in the joint-state loop (``fws_lag_s`` = 0) [ms].
         self.fws_loop_ms = _Ring(256)
         self.stance_period = np.zeros(_MAX_LEGS + 1, dtype=np.int64)
@@ -264,7 +268,8 @@ class NodeDiagnostics:
 
     def evaluated(self, status: int, compute_time_s: float, latency_s: float | None,
                   reason: str = '', stance_legs: int | None = None,
-                  queue_delay_s: float | None = None) -> None:
+                  queue_delay_s: float | None = None,
+                  transport_delay_s: float | None = None) -> None:
         """
         Count one report of ``status`` (STATUS_* value), its compute time and latency.
 
@@ -273,9 +278,13 @@ class NodeDiagnostics:
             evaluated).
         :param queue_delay_s: how long the joint state waited in the input queue [s] (None:
             unknown, not counted).
+        :param transport_delay_s: how long the joint state took from its publisher's write to
+            the node's DDS receiving it [s] (None: unknown, not counted).
         """
         if queue_delay_s is not None:
             self.queue_ms.add(1e3 * queue_delay_s)
+        if transport_delay_s is not None:
+            self.transport_ms.add(1e3 * transport_delay_s)
         i = min(int(status), len(STATUS_NAMES) - 1)
         self.reports_total[i] += 1
         self.reports_period[i] += 1
@@ -323,6 +332,7 @@ class NodeDiagnostics:
         self.compute_ms.clear()
         self.latency_ms.clear()
         self.queue_ms.clear()
+        self.transport_ms.clear()
         self.fws_loop_ms.clear()
         return msg
 
@@ -405,6 +415,7 @@ class NodeDiagnostics:
         c50, c99 = self.compute_ms.percentiles([50, 99])
         l50, l99 = self.latency_ms.percentiles([50, 99])
         q50, q99, qmax = self.queue_ms.percentiles([50, 99, 100])
+        t50, t99, tmax = self.transport_ms.percentiles([50, 99, 100])
         values = [KeyValue(key=f'reports {name} (period)', value=str(int(n)))
                   for name, n in zip(STATUS_NAMES.values(), self.reports_period)]
         values += [KeyValue(key=f'reports {name} (total)', value=str(int(n)))
@@ -420,6 +431,9 @@ class NodeDiagnostics:
                    KeyValue(key='input queue delay p50 [ms]', value=f'{q50:.3f}'),
                    KeyValue(key='input queue delay p99 [ms]', value=f'{q99:.3f}'),
                    KeyValue(key='input queue delay max [ms]', value=f'{qmax:.3f}'),
+                   KeyValue(key='input transport delay p50 [ms]', value=f'{t50:.3f}'),
+                   KeyValue(key='input transport delay p99 [ms]', value=f'{t99:.3f}'),
+                   KeyValue(key='input transport delay max [ms]', value=f'{tmax:.3f}'),
                    KeyValue(key='reports by stance legs (period)', value=legs),
                    KeyValue(key='last error', value=self.last_reason),
                    KeyValue(key='last warning', value=self.last_warning),

@@ -445,7 +445,7 @@ class AwpNode(Node):
         self.diagnostics.evaluated(cycle.status, cycle.compute_time, self._latency(msg),
                                    cycle.status_message,
                                    None if cycle.result is None else len(cycle.result.stance),
-                                   queue_delay_s=delay)
+                                   queue_delay_s=delay, transport_delay_s=_transport_delay(info))
         if cycle.fws_computed and cycle.result is not None:      # in the loop (fws_lag_s 0)
             tm = cycle.result.timings_ms
             self.diagnostics.fws_in_loop(sum(tm.get(k, 0.0) for k in FWS_TIMINGS))
@@ -591,6 +591,22 @@ def _queue_delay(info: dict) -> float | None:
     if not received:
         return None
     return max(0.0, (time.time_ns() - received) * 1e-9)
+
+
+def _transport_delay(info: dict) -> float | None:
+    """
+    Return how long a message took from its publisher's write to DDS receiving it [s].
+
+    The message info's ``source_timestamp`` (the publisher's clock when it wrote the message)
+    to its ``received_timestamp`` (this machine's clock when the sample arrived); None when
+    either is unknown. With the publisher on another machine it includes the clocks' offset.
+    """
+    if not info:
+        return None
+    sent, received = info.get('source_timestamp'), info.get('received_timestamp')
+    if not sent or not received:
+        return None
+    return (received - sent) * 1e-9
 
 
 def main(args=None) -> int:

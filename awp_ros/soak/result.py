@@ -52,7 +52,9 @@ class SoakResult:
     #: The node's own view of its input queue, from its /diagnostics periods that counted
     #: joint states: ``periods``, ``falling_behind`` (periods whose evaluation status said
     #: so), ``queue_delay_max_ms`` (the longest wait of a joint state in its input queue),
-    #: ``last_falling_behind_message`` (that status's message, '' if none).
+    #: ``transport_delay_max_ms`` (the longest from the driver's write of a joint state to
+    #: the node's DDS receiving it), ``last_falling_behind_message`` (that status's message,
+    #: '' if none).
     node_queue: dict = field(default_factory=dict)
     driver: dict = field(default_factory=dict)
     timeline: list = field(default_factory=list)
@@ -148,7 +150,10 @@ class SoakResult:
         if queue.get('periods'):
             lines.append("the node's input queue (its /diagnostics): 'falling behind' in "
                          f"{queue['falling_behind']} of {queue['periods']} periods, the "
-                         f"longest wait {queue['queue_delay_max_ms']:.1f} ms")
+                         f"longest wait {queue['queue_delay_max_ms']:.1f} ms; joint states "
+                         'reached its DDS up to '
+                         f"{queue.get('transport_delay_max_ms', nan):.1f} ms after the driver "
+                         'wrote them')
         if self.load_average:
             lines.append('machine load average (1, 5, 15 min): ' + '; '.join(
                 f'{when} {" ".join(f"{x:.2f}" for x in values)}'
@@ -260,7 +265,7 @@ def fill_node_diagnostics(result: SoakResult, diag: list, lock: threading.Lock) 
     with lock:
         arrays = list(diag)
     lost, gaps, p50, fws_count, fws_max = None, None, [], 0, []
-    periods, behind, queue_max, message = 0, 0, [], ''
+    periods, behind, queue_max, transport_max, message = 0, 0, [], [], ''
     for arr in arrays:
         for st in arr.status:
             values = {kv.key: kv.value for kv in st.values}
@@ -275,6 +280,9 @@ def fill_node_diagnostics(result: SoakResult, diag: list, lock: threading.Lock) 
                 if np.isfinite(q):
                     periods += 1
                     queue_max.append(q)
+                t = float(values.get('input transport delay max [ms]', 'nan'))
+                if np.isfinite(t):
+                    transport_max.append(t)
                     if 'falling behind' in st.message:
                         behind += 1
                         message = st.message
@@ -288,6 +296,8 @@ def fill_node_diagnostics(result: SoakResult, diag: list, lock: threading.Lock) 
     if periods:
         result.node_queue = {'periods': periods, 'falling_behind': behind,
                              'queue_delay_max_ms': round(max(queue_max), 3),
+                             'transport_delay_max_ms': round(max(transport_max), 3)
+                             if transport_max else nan,
                              'last_falling_behind_message': message}
     result.node_lost_total = lost
     result.node_missing_from_sequence = gaps

@@ -194,6 +194,10 @@ def test_a_node_slower_than_its_input_says_it_is_falling_behind(ros_env):
     # The node's longest wait is its own clock's view of the latency the soak measured.
     assert queue['queue_delay_max_ms'] > 100.0, queue
     assert queue['queue_delay_max_ms'] <= r.latency_ms['max'] + 50.0, (queue, r.latency_ms)
+    # The backlog is the node's, not DDS's: from the driver's write to the node's DDS
+    # receiving a joint state took far less than the wait after it.
+    assert 0.0 <= queue['transport_delay_max_ms'] < 0.5 * queue['queue_delay_max_ms'], queue
+    assert 'ms after the driver wrote them' in r.table()
     assert "the node's input queue (its /diagnostics): 'falling behind' in " in r.table()
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus
 import numpy as np
+import pytest
 
 from awp_ros.node.diagnostics import NodeDiagnostics
 
@@ -199,3 +200,30 @@ def test_a_growing_input_queue_is_falling_behind_even_when_each_evaluation_fits(
         else:
             assert evaluation.level == DiagnosticStatus.OK, evaluation.message
         assert d.falling_behind == behind
+
+
+def test_the_input_transport_delay_is_the_publishers_write_to_the_nodes_reception():
+    """Per period: p50 / p99 / max of received - source timestamp; unknown ones not counted."""
+    from awp_ros.node.node import _transport_delay
+    assert _transport_delay({'source_timestamp': 1_000_000_000,
+                             'received_timestamp': 1_333_000_000}) == pytest.approx(0.333)
+    assert _transport_delay({'source_timestamp': 0, 'received_timestamp': 5}) is None
+    assert _transport_delay({}) is None
+    d = NodeDiagnostics('awp_node', 'hyq', ['joint_states'])
+    d.build(Time(), wall=0.0)
+    delays = np.full(1000, 6e-5)
+    delays[701] = 0.333                                 # one joint state late in DDS
+    for i in range(1000):
+        d.received('joint_states', i * 1e-3)
+        d.evaluated(0, compute_time_s=3e-4, latency_s=None, queue_delay_s=1e-4,
+                    transport_delay_s=float(delays[i]) if i % 10 else None)
+    v = _values(d.build(Time(), wall=1.0).status[1])
+    known = delays[np.arange(1000) % 10 != 0]
+    assert float(v['input transport delay p50 [ms]']) == round(1e3 * np.median(known), 3)
+    assert float(v['input transport delay p99 [ms]']) == round(
+        1e3 * np.percentile(known, 99), 3)
+    assert float(v['input transport delay max [ms]']) == 333.0
+    assert float(v['input queue delay max [ms]']) == 0.1
+    # A new period starts empty.
+    v = _values(d.build(Time(), wall=2.0).status[1])
+    assert v['input transport delay max [ms]'] == 'nan'
