@@ -280,12 +280,12 @@ def fill_node_diagnostics(result: SoakResult, diag: list, lock: threading.Lock) 
                 if np.isfinite(q):
                     periods += 1
                     queue_max.append(q)
-                t = float(values.get('input transport delay max [ms]', 'nan'))
-                if np.isfinite(t):
-                    transport_max.append(t)
                     if 'falling behind' in st.message:
                         behind += 1
                         message = st.message
+                t = float(values.get('input transport delay max [ms]', 'nan'))
+                if np.isfinite(t):
+                    transport_max.append(t)
                 n = int(values.get('FWS in the loop (period)', 0))
                 if n:
                     fws_count += n

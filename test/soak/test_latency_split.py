@@ -76,3 +76,31 @@ def test_the_pause_threshold_is_ten_periods_at_low_rates_and_unknown_times_are_l
     w = r.worst_report                                  # the slowest has no split
     assert w['latency_ms'] == pytest.approx(900.0) and np.isnan(w['node_publish_ms'])
     assert np.isnan(w['transport_ms'])
+
+
+def test_the_node_queue_counts_falling_behind_with_or_without_the_transport_delay():
+    """A period says 'falling behind' whether or not the node reports its transport delay."""
+    from threading import Lock
+
+    from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+    from awp_ros.soak.result import fill_node_diagnostics
+
+    def period(queue_ms: str, transport_ms: str | None, message: str) -> DiagnosticArray:
+        values = [KeyValue(key='input queue delay max [ms]', value=queue_ms)]
+        if transport_ms is not None:
+            values.append(KeyValue(key='input transport delay max [ms]', value=transport_ms))
+        return DiagnosticArray(status=[DiagnosticStatus(name='awp_node: evaluation',
+                                                        message=message, values=values)])
+    behind = 'falling behind: joint states waited 35.2 ms (p50)'
+    for transport in (None, 'nan', '2.5'):
+        r = SoakResult('hyq', 1000.0, 2.0, 3000)
+        fill_node_diagnostics(r, [period('40.0', transport, behind),
+                                  period('3.0', transport, '1000 reports')], Lock())
+        assert r.node_queue['periods'] == 2 and r.node_queue['falling_behind'] == 1
+        assert r.node_queue['last_falling_behind_message'] == behind
+        assert r.node_queue['queue_delay_max_ms'] == 40.0
+        if transport == '2.5':
+            assert r.node_queue['transport_delay_max_ms'] == 2.5
+        else:
+            assert np.isnan(r.node_queue['transport_delay_max_ms'])
