@@ -36,7 +36,7 @@ def _slow(steal: float, **kwargs) -> SlowMachine:
 
 
 def test_the_stealers_slow_every_thread_by_about_their_share():
-    fast = _loop_s()
+    before = _loop_s()
     slow = _slow(0.5)
     try:
         slowed = _loop_s()
@@ -44,6 +44,10 @@ def test_the_stealers_slow_every_thread_by_about_their_share():
     finally:
         slow.stop()
     after = _loop_s()
+    # The machine's own speed: the faster of the timings without stealers (another process
+    # busy during one of them, e.g. an earlier test's node still stopping, makes it slower:
+    # in one fresh-clone CI run the loop took 21.6 ms before, 16 ms on the idle machine).
+    fast = min(before, after)
     assert running == [True] * len(os.sched_getaffinity(0))
     # Half of each CPU taken: about 2x, more with the context switches; not 1x, not 4x.
     assert 1.6 < slowed / fast < 3.5, (fast, slowed)
