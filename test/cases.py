@@ -16,6 +16,8 @@ import numpy as np
 import pinocchio as pin
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
+from scipy.optimize import linprog
+from scipy.spatial import cKDTree
 from sensor_msgs.msg import JointState
 
 from awp_ros.node.launcher import stop_node
@@ -121,6 +123,29 @@ def hyq_feet(rng, K) -> np.ndarray:
     """K feet near HyQ's (a fifth one, a hexapod's middle leg, near the body's side)."""
     feet = np.vstack([HYQ_FEET, [[0.0, 0.4, -0.55], [0.0, -0.4, -0.55]]])
     return feet[:K] + rng.uniform(-0.05, 0.05, size=(K, 3))
+
+
+def assert_same_polytope(S, other, *, share: float = 0.2) -> None:
+    """
+    Assert that two H-reps describe one set.
+
+    Each row of one is the other's to 1e-9 or implied by the other's rows (an LP within the
+    other's hull), and fewer than ``share`` of the rows are not the other's.
+    """
+    assert S.dimension == other.dimension
+    np.testing.assert_allclose(S.hull_basis @ S.hull_basis.T,
+                               other.hull_basis @ other.hull_basis.T, atol=1e-9)
+    for P, Q in ((S, other), (other, S)):
+        rows = np.column_stack([P.A, P.b / 1e3])
+        gap, _ = cKDTree(np.column_stack([Q.A, Q.b / 1e3])).query(rows)
+        for i in np.flatnonzero(gap > 1e-9):
+            # Within the hull (its equalities), P's row i is no tighter than Q's rows allow.
+            E, e = Q.equalities
+            best = linprog(-P.A[i], A_ub=Q.A, b_ub=Q.b, A_eq=E if E.shape[0] else None,
+                           b_eq=e if E.shape[0] else None, bounds=(None, None),
+                           method='highs')
+            assert best.status == 0 and -best.fun <= P.b[i] + 1e-9 * (1 + abs(P.b[i]))
+        assert np.count_nonzero(gap > 1e-9) < share * gap.size
 
 
 def vertex_sums(positions, vertex_sets) -> np.ndarray:

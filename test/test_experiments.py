@@ -89,3 +89,14 @@ def test_ros_glue_floor_relays_every_joint_state():
     assert 0.0 < out['relay_cpu_percent'] < 200.0
     assert out['relay_ms_per_joint_state'] == pytest.approx(10.0 * out['relay_cpu_percent']
                                                             / 200.0, rel=0.01)
+
+
+def test_flat_pair_ab_times_both_searches_and_restores_the_compiled_one():
+    """``flat_pair_ab.run`` times the numpy and the compiled two-leg search, then restores it."""
+    import flat_pair_ab
+    import awp_ros.geometry.minkowski_facets as mf
+    compiled = mf._flat_pair
+    out = flat_pair_ab.run(count=12, passes=1)
+    assert set(out) == {'numpy', 'compiled'}
+    assert all(len(v) == len(flat_pair_ab.PAIRS) and min(v) > 0.0 for v in out.values())
+    assert mf._flat_pair is compiled

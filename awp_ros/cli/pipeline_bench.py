@@ -3,17 +3,20 @@ Time the node's pipeline, message by message, over a bag (no DDS): where a joint
 
 ::
 
-    python -m awp_ros.cli.pipeline_bench [BAG] [--robot hyq] [--repeat 2]
+    python -m awp_ros.cli.pipeline_bench [BAG] [--robot hyq] [--repeat 2] [-p KEY=VALUE ...]
 
 Reads the joint states and contacts of ``BAG`` (default: the default bag,
 ``config/hyq_gait.mcap``), feeds them to :class:`awp_ros.ros.pipeline.Pipeline` in recorded order
-as ``awp_node`` does (the first pass warms up, the last is timed) and prints, per joint state,
+as ``awp_node`` does, with the robot's parameters and the ``-p`` overrides (as ``awp_replay``;
+``-p fws_rate_hz=0``: the FWS every cycle, its cost amortised over the bag in
+``fws_amortised_ms``) (the first pass warms up, the last is timed) and prints, per joint state,
 the mean and median wall time of :meth:`~awp_ros.ros.pipeline.Pipeline.on_joint_state` [ms], how
 often the contact wrench cone reused its last facets (``cwc_reused``, ``cwc_searched``), the
 mean of each evaluation stage (:data:`awp_ros.evaluation.evaluator.STAGES`) and of the FWS
 amortised over all joint states, the rest (report and input conversion), and the means by number
-of stance legs. Its last line is one JSON object. Output messages other than the report are not
-built (as in a node without subscribers to them).
+of stance legs, with the median time of the FWS computed for a joint state of that many stance
+legs (``fws_ms_by_stance_legs``). Its last line is one JSON object. Output messages other than
+the report are not built (as in a node without subscribers to them).
 """
 
 from __future__ import annotations
@@ -25,13 +28,20 @@ import time
 
 import numpy as np
 
+from awp_ros.cli.replay import parse_override
+from awp_ros.errors import AwpError
 from awp_ros.runtime import tune_process
 
 __all__ = ['main', 'time_pipeline']
 
 
-def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2) -> dict:
-    """Return the timings [ms] of the pipeline over ``bag`` (see the module docstring)."""
+def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
+                  overrides: dict | None = None) -> dict:
+    """
+    Return the timings [ms] of the pipeline over ``bag`` (see the module docstring).
+
+    :param overrides: node parameters replacing the robot file's (``-p``).
+    """
     from awp_ros_msgs.msg import ContactState
     from rclpy.serialization import deserialize_message
     from sensor_msgs.msg import JointState
@@ -42,7 +52,7 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2) -> dict:
     from awp_ros.ros.pipeline import Pipeline
     from awp_ros.wrench.contact_wrench_cone import reuse_counts
 
-    params, base_dir = load_parameters(robot)
+    params, base_dir = load_parameters(robot, overrides)
     pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
     types = {'/joint_states': JointState, '/contacts': ContactState}
     msgs = [(m.topic, deserialize_message(m.data, types[m.topic]))
@@ -77,6 +87,9 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2) -> dict:
         out[f'{s}_ms'] for s in STAGES)
     out['mean_ms_by_stance_legs'] = {int(k): float(wall_a[legs_a == k].mean())
                                      for k in np.unique(legs_a)}
+    fws_a = np.array(fws)
+    out['fws_ms_by_stance_legs'] = {int(k): float(np.median(fws_a[(legs_a == k) & (fws_a > 0)]))
+                                    for k in np.unique(legs_a[fws_a > 0])}
     return out
 
 
@@ -90,16 +103,25 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--robot', default='hyq', help='robot config (default: hyq)')
     parser.add_argument('--repeat', type=int, default=2,
                         help='passes over the bag; the last is timed (default: 2)')
+    parser.add_argument('-p', '--param', action='append', type=parse_override, default=[],
+                        metavar='KEY=VALUE', help='parameter override, e.g. -p fws_rate_hz=0 '
+                        '(the FWS every cycle); repeatable')
     args = parser.parse_args(argv)
     tune_process()
-    out = time_pipeline(args.bag or str(default_bag_path()), args.robot, args.repeat)
+    try:
+        out = time_pipeline(args.bag or str(default_bag_path()), args.robot, args.repeat,
+                            dict(args.param))
+    except AwpError as exc:
+        parser.exit(2, f'{parser.prog}: error: {exc}\n')
     lines = [f'{out["joint_states"]} joint states: {out["mean_ms"]:.3f} ms mean, '
              f'{out["p50_ms"]:.3f} ms median per joint state; FWS computed '
              f'{out["fws_computed"]} times; contact wrench cone: facets reused '
              f'{out["cwc_reused"]} times, searched {out["cwc_searched"]}']
     lines += [f'  {k[:-3]:<20} {v:.4f} ms (mean per joint state)' for k, v in out.items()
               if k.endswith('_ms') and k not in ('mean_ms', 'p50_ms')]
-    lines += [f'  {k} stance legs: {v:.3f} ms mean'
+    lines += [f'  {k} stance legs: {v:.3f} ms mean per joint state'
+              + (f', its FWS {out["fws_ms_by_stance_legs"][k]:.3f} ms (median)'
+                 if k in out['fws_ms_by_stance_legs'] else '')
               for k, v in out['mean_ms_by_stance_legs'].items()]
     sys.stdout.write('\n'.join(lines) + '\n' + json.dumps(out) + '\n')
     return 0

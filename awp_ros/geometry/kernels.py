@@ -42,6 +42,9 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
 * :func:`slice_facet_normals`: the FWS's face choices of the patterns (2, 1, 1, 1), (2, 2, 1),
   (3, 1, 1) and (3, 2) searched on the slices of one leg's facet (or of the whole leg), in R^4
   (:mod:`awp_ros.geometry.minkowski_facets`, (5)).
+* :func:`flat_pair_facet_normals`: the FWS's face choices of two stance legs in their
+  hyperplane (r = 5), the patterns (2, 2) and (3, 1), each normal a generalised cross product
+  in R^5 (:mod:`awp_ros.geometry.minkowski_facets`, (6)).
 
 Each is measured beside its numpy code, interleaved in one process, by ``awp_bench
 --kernels`` (the README's speed section has the figures).
@@ -77,7 +80,8 @@ __all__ = [
     'ENABLED', 'MAX_BITS', 'batched_vertices', 'certified_solid_faces',
     'cone_double_description', 'cone_facets', 'cone_recheck', 'cross_products', 'cycle_regions',
     'cycle_sets',
-    'first_of_equal_rows', 'flat_cone_facets', 'feasible_region', 'flat_zonotope_facets',
+    'first_of_equal_rows', 'flat_cone_facets', 'flat_pair_facet_normals', 'feasible_region',
+    'flat_zonotope_facets',
     'leg_vertices', 'lifted_rays', 'lifted_zonotope', 'pair_basis', 'parallelepipeds',
     'polar_hull',
     'polygon_region', 'projected_polygon', 'ratio_test', 'segment_slice', 'solid_faces',
@@ -2943,6 +2947,191 @@ def slice_facet_normal_parts(positions: np.ndarray, U: np.ndarray, groups: dict,
         cap *= 4
 
 
+# -- The FWS of two stance legs: a flat sum (minkowski_facets, (6)) ----------------------------
+#
+# Two legs' lifted polytopes span a hyperplane of R^6 (a force along the line through both feet
+# is the same wrench from either); in its coordinates (r = 5) a facet takes faces whose
+# dimensions add up to 4: a facet class of each leg (2, 2), or all of one leg and an edge class
+# of the other (3, 1). Its normal a is the generalised cross product of the four lifted
+# directions, a . y = det[v_1; v_2; v_3; v_4; y].
+
+#: The columns left when column i of a (4, 5) matrix is dropped.
+_COLS5 = np.array([[1, 2, 3, 4], [0, 2, 3, 4], [0, 1, 3, 4], [0, 1, 2, 4], [0, 1, 2, 3]])
+
+
+@_jit(inline=True, fastmath=True)
+def _cross5(V, out):
+    """Write a with ``a . y = det[V_0; V_1; V_2; V_3; y]`` (V (4, 5)) to out; return |a|."""
+    acc = 0.0
+    for i in range(5):
+        c0, c1, c2, c3 = _COLS5[i, 0], _COLS5[i, 1], _COLS5[i, 2], _COLS5[i, 3]
+        m01 = V[0, c0] * V[1, c1] - V[0, c1] * V[1, c0]
+        m02 = V[0, c0] * V[1, c2] - V[0, c2] * V[1, c0]
+        m03 = V[0, c0] * V[1, c3] - V[0, c3] * V[1, c0]
+        m12 = V[0, c1] * V[1, c2] - V[0, c2] * V[1, c1]
+        m13 = V[0, c1] * V[1, c3] - V[0, c3] * V[1, c1]
+        m23 = V[0, c2] * V[1, c3] - V[0, c3] * V[1, c2]
+        n01 = V[2, c0] * V[3, c1] - V[2, c1] * V[3, c0]
+        n02 = V[2, c0] * V[3, c2] - V[2, c2] * V[3, c0]
+        n03 = V[2, c0] * V[3, c3] - V[2, c3] * V[3, c0]
+        n12 = V[2, c1] * V[3, c2] - V[2, c2] * V[3, c1]
+        n13 = V[2, c1] * V[3, c3] - V[2, c3] * V[3, c1]
+        n23 = V[2, c2] * V[3, c3] - V[2, c3] * V[3, c2]
+        d = m01 * n23 - m02 * n13 + m03 * n12 + m12 * n03 - m13 * n02 + m23 * n01
+        out[i] = d if i % 2 == 0 else -d
+        acc += d * d
+    return np.sqrt(acc)
+
+
+@_jit(inline=True, fastmath=True)
+def _lift5(Mk, v, out):
+    """Write ``M_k v`` (M_k (5, 3)) to out; return its norm."""
+    acc = 0.0
+    for i in range(5):
+        out[i] = Mk[i, 0] * v[0] + Mk[i, 1] * v[1] + Mk[i, 2] * v[2]
+        acc += out[i] * out[i]
+    return np.sqrt(acc)
+
+
+@_jit(inline=True, fastmath=True)
+def _lifted_checks5(Mk, checks, mask, cone_tol, S, tol):
+    """Write a class's lifted check vectors ``M_k m`` (k, c, 5) and slacks (-inf: no slot)."""
+    for s in range(S.shape[0]):
+        for j in range(S.shape[1]):
+            norm = _lift5(Mk, checks[s, j], S[s, j])
+            tol[s, j] = cone_tol * norm if mask[s] else -np.inf
+
+
+@_jit(inline=True, fastmath=True)
+def _slot_signs5(S, tol, a, na):
+    """:func:`_slot_signs` in R^5: (pos, neg) of one leg's face class at a."""
+    f = -np.inf
+    h = np.inf
+    for s in range(S.shape[0]):
+        mn = np.inf
+        mx = -np.inf
+        for j in range(S.shape[1]):
+            v = 0.0
+            for i in range(5):
+                v += S[s, j, i] * a[i]
+            w = tol[s, j] * na
+            mn = min(mn, v + w)
+            mx = max(mx, v - w)
+        f = max(f, mn)
+        h = min(h, mx)
+    return f >= 0.0, h <= 0.0
+
+
+@_jit(fastmath=True)
+def _flat_pair_search(M, Ed, Ec, Em, nE, Fd, Fc, Fm, nF, cone_tol, normal_tol, out):
+    """
+    Search the face choices of two legs in their hyperplane (:func:`flat_pair_facet_normals`).
+
+    Writes the passing unit normals to ``out`` (the + rows of each choice, then its - row)
+    and returns ``(rows, choices)``.
+    """
+    V = np.empty((4, 5))
+    a = np.empty(5)
+    kE, cE = Ec.shape[2], Ec.shape[3]
+    kF, cF = Fc.shape[2], Fc.shape[3]
+    SE = np.empty((2, Ed.shape[1], kE, cE, 5))
+    tE = np.empty((2, Ed.shape[1], kE, cE))
+    SF = np.empty((2, Fd.shape[1], kF, cF, 5))
+    tF = np.empty((2, Fd.shape[1], kF, cF))
+    EV = np.empty((2, Ed.shape[1], 5))
+    nEV = np.empty((2, Ed.shape[1]))
+    FV = np.empty((2, Fd.shape[1], 2, 5))
+    nFV = np.empty((2, Fd.shape[1], 2))
+    WV = np.empty((2, 3, 5))
+    nWV = np.empty((2, 3))
+    e = np.zeros(3)
+    for k in range(2):
+        for i in range(nE[k]):
+            nEV[k, i] = _lift5(M[k], Ed[k, i, 0], EV[k, i])
+            _lifted_checks5(M[k], Ec[k, i], Em[k, i], cone_tol, SE[k, i], tE[k, i])
+        for i in range(nF[k]):
+            for j in range(2):
+                nFV[k, i, j] = _lift5(M[k], Fd[k, i, j], FV[k, i, j])
+            _lifted_checks5(M[k], Fc[k, i], Fm[k, i], cone_tol, SF[k, i], tF[k, i])
+        for j in range(3):
+            e[0], e[1], e[2] = 0.0, 0.0, 0.0
+            e[j] = 1.0
+            nWV[k, j] = _lift5(M[k], e, WV[k, j])
+    rows = 0
+    choices = 0
+    # (2, 2): a facet class of each leg, both legs checked.
+    for i in range(nF[0]):
+        for j in range(nF[1]):
+            choices += 1
+            for q in range(5):
+                V[0, q], V[1, q] = FV[0, i, 0, q], FV[0, i, 1, q]
+                V[2, q], V[3, q] = FV[1, j, 0, q], FV[1, j, 1, q]
+            na = _cross5(V, a)
+            if not na > normal_tol * nFV[0, i, 0] * nFV[0, i, 1] * nFV[1, j, 0] * nFV[1, j, 1]:
+                continue
+            p0, m0 = _slot_signs5(SF[0, i], tF[0, i], a, na)
+            if not (p0 or m0):
+                continue
+            p1, m1 = _slot_signs5(SF[1, j], tF[1, j], a, na)
+            for sign, ok in ((1.0, p0 and p1), (-1.0, m0 and m1)):
+                if ok:
+                    for q in range(5):
+                        out[rows, q] = sign * a[q] / na
+                    rows += 1
+    # (3, 1): all of leg w (no check: its normal cone is {0}), an edge class of the other.
+    for w in range(2):
+        o = 1 - w
+        for i in range(nE[o]):
+            choices += 1
+            for q in range(5):
+                V[0, q], V[1, q], V[2, q] = WV[w, 0, q], WV[w, 1, q], WV[w, 2, q]
+                V[3, q] = EV[o, i, q]
+            na = _cross5(V, a)
+            if not na > normal_tol * nWV[w, 0] * nWV[w, 1] * nWV[w, 2] * nEV[o, i]:
+                continue
+            p1, m1 = _slot_signs5(SE[o, i], tE[o, i], a, na)
+            for sign, ok in ((1.0, p1), (-1.0, m1)):
+                if ok:
+                    for q in range(5):
+                        out[rows, q] = sign * a[q] / na
+                    rows += 1
+    return rows, choices
+
+
+def flat_pair_facet_normals(M: np.ndarray, edges: tuple, facets: tuple, cone_tol: float,
+                            normal_tol: float) -> tuple[np.ndarray, int]:
+    r"""
+    Return the unit facet normal candidates of the sum of two solid lifted legs, and the count.
+
+    :mod:`awp_ros.geometry.minkowski_facets`, (6): in the coordinates ``y = U^T x`` of the two
+    legs' hyperplane (r = 5, ``M`` (2, 5, 3) = ``U^T L_k``) the face choices are the patterns
+    (2, 2) (a facet class of each leg) and (3, 1) (all of one leg, an edge class of the other);
+    each choice's normal is the generalised cross product of its four lifted directions,
+    ``a . y = det[v_1; v_2; v_3; v_4; y]``, kept with the sign + (-) when every check value
+    ``(M_k m) . a`` of its faces is ``>= -`` (``<=``) ``cone_tol |M_k m| |a|`` for some slot
+    of the class, in float64; ``|a| <= normal_tol`` times the product of the ``|v_i|`` is
+    rank-deficient and skipped. Every tolerance only admits extra rows that are valid
+    supporting halfspaces once the caller sets their offsets (the support function).
+
+    :param edges: ``(dirs (2, m, 1, 3), checks (2, m, k, c, 3), mask (2, m, k), counts (2,))``,
+        the legs' edge classes padded (``minkowski_facets._padded_groups``); ``facets``
+        likewise with ``dirs (2, m, 2, 3)``.
+    :return: ``(rows (N, 5), choices examined)``.
+    """
+    M = np.ascontiguousarray(M, dtype=float)
+    Ed, Ec, Em, nE = edges
+    Fd, Fc, Fm, nF = facets
+    cap = 2 * (int(nF[0]) * int(nF[1]) + int(nE[0]) + int(nE[1]))
+    out = np.empty((max(cap, 1), 5))
+    rows, choices = _flat_pair_search(
+        M, np.ascontiguousarray(Ed, dtype=float), np.ascontiguousarray(Ec, dtype=float),
+        np.ascontiguousarray(Em), np.ascontiguousarray(nE, dtype=np.int64),
+        np.ascontiguousarray(Fd, dtype=float), np.ascontiguousarray(Fc, dtype=float),
+        np.ascontiguousarray(Fm), np.ascontiguousarray(nF, dtype=np.int64), float(cone_tol),
+        float(normal_tol), out)
+    return out[:rows].copy(), int(choices)
+
+
 @_jit
 def _first_of_equal_rows(X, scale):
     """Open addressing on the rows rounded to integers (:func:`first_of_equal_rows`)."""
@@ -3461,6 +3650,7 @@ def compile_all() -> None:
     for dims, legs in (((2, 1, 1, 1), [[0, 1, 1, 1]]), ((2, 2, 1), [[0, 1, 1]]),
                        ((3, 1, 1), [[0, 1, 1]]), ((3, 2), [[0, 1]])):
         slice_facet_normals(g[:2, :3], np.eye(6), groups, dims, np.array(legs), 1e-5, 1e-8)
+    flat_pair_facet_normals(rng.normal(size=(2, 5, 3)), groups[1], groups[2], 1e-5, 1e-8)
 
 
 if __name__ == '__main__':

@@ -37,7 +37,13 @@ in the coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``
     float64, with the slack ``cone_tol |s| |x|`` (or its bound ``cone_tol |s| |P| |r_3|``).
     It keeps the same facets as (3) with fewer redundant copies
     (``test_fws_facets_equal_the_numpy_reference``) in less time (README, "Speed"); flat
-    sums (two legs, feet on a line) and five or more legs stay with (2)-(3).
+    sums of three or more legs (feet on a line) and five or more legs stay with (2)-(3).
+(6) With the compiled kernels and two solid stance legs (``r = 5``: the legs' hyperplane), the
+    patterns (2, 2) and (3, 1) are searched in one call
+    (:func:`awp_ros.geometry.kernels.flat_pair_facet_normals`): about 100 choices, each
+    normal the generalised cross product of its four lifted directions in R^5, checked in
+    float64 with the slack ``cone_tol |M_k m| |a|`` (numpy's grid machinery, built for 10^5
+    choices, cost more in set-up than in search here).
 
 The caller then sets each row's offset to the support function of ``S`` (an exact
 supporting halfspace whatever ``a`` is). Every tolerance in (3) only admits extra (redundant
@@ -136,6 +142,10 @@ def facet_normal_steps(faces: list[Faces], M: np.ndarray, r: int, cone_tol: floa
     """
     if r == 1:                                    # a segment: both directions of the line
         return np.array([[1.0], [-1.0]]), 2
+    if _flat_pair(faces, r):                       # two solid legs: (6), one call
+        yield
+        return kernels.flat_pair_facet_normals(M, _padded_groups(faces, 1),
+                                               _padded_groups(faces, 2), cone_tol, normal_tol)
     offered = tuple(tuple(range(1, min(len(F.groups), r - 1) + 1)) for F in faces)
     patterns = _patterns(offered, r - 1)
     sliced = kernels.ENABLED and r == 6 and feet is not None and basis is not None
@@ -193,6 +203,12 @@ def facet_normal_steps(faces: list[Faces], M: np.ndarray, r: int, cone_tol: floa
     if not normals:
         return np.zeros((0, r)), 0
     return np.vstack(normals), count
+
+
+def _flat_pair(faces: list[Faces], r: int) -> bool:
+    """Return whether the compiled flat-pair search (6) applies: two solid legs, r = 5."""
+    return kernels.ENABLED and r == 5 and len(faces) == 2 and all(
+        len(F.groups) == 3 for F in faces)
 
 
 def _runs(legs: list[tuple], dims: tuple, padded: dict,

@@ -123,3 +123,27 @@ def test_cli_prints_a_table_and_one_json_line(trot):
     assert out['fws_computed'] == len(due_fws(stamps, stances, rate))
     for s in STAGES:
         assert any(line.split()[0] == s for line in lines[1:-1]), s
+
+
+def test_a_parameter_override_computes_the_fws_every_cycle(trot):
+    """``-p fws_rate_hz=0``: the FWS of every joint state, amortised over the bag."""
+    gait, bag = trot
+    every = time_pipeline(str(bag), 'hyq', repeat=1, overrides={'fws_rate_hz': 0.0})
+    assert every['fws_computed'] == every['joint_states'] == len(gait)
+    # The FWS's median by stance size, for each stance size of the bag; each FWS is part of
+    # its joint state's time, so no median exceeds the largest mean by stance size.
+    assert set(every['fws_ms_by_stance_legs']) == set(every['mean_ms_by_stance_legs'])
+    assert all(0.0 < v for v in every['fws_ms_by_stance_legs'].values())
+    assert max(every['fws_ms_by_stance_legs'].values()) <= 2 * max(
+        every['mean_ms_by_stance_legs'].values())
+    default = time_pipeline(str(bag), 'hyq', repeat=1)
+    assert default['fws_computed'] < every['fws_computed']
+
+
+def test_cli_rejects_an_unknown_parameter_with_its_name(trot):
+    _, bag = trot
+    proc = subprocess.run([sys.executable, '-m', 'awp_ros.cli.pipeline_bench', str(bag),
+                           '--repeat', '1', '-p', 'fws_rate_hzz=0'], capture_output=True,
+                          text=True, timeout=180)
+    assert proc.returncode == 2
+    assert 'fws_rate_hzz' in proc.stderr and 'Traceback' not in proc.stderr

@@ -153,3 +153,29 @@ def test_singular_and_near_singular_legs_take_the_stage_by_stage_code(monkeypatc
         warnings = evaluator.evaluate(state, fws=False).warnings
         assert any(warning in w for w in warnings) if warning else \
             not any('singular' in w for w in warnings)
+
+
+def test_the_fws_of_every_two_leg_joint_state_of_the_default_bag_is_numpys(repo, monkeypatch):
+    """
+    Two stance legs (every trot phase): the flat-pair search gives numpy's polytope.
+
+    The default bag's trot keeps level feet on a rectangle, the degenerate case (directions
+    shared by two legs' faces); each FWS of a two-leg joint state, with the compiled
+    ``flat_pair_facet_normals``, equals the numpy grid search's on the same legs (rows
+    matched or implied by an LP, :func:`cases.assert_same_polytope`).
+    """
+    from cases import assert_same_polytope
+    from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set
+    evaluator, calls = bag_calls(repo)
+    jobs = []
+    for state, kw in calls:
+        result = evaluator.evaluate(state, **{**kw, 'fws': False})
+        if len(result.stance) == 2:
+            jobs.append(evaluator.fws_job(result)[:2])
+    assert len(jobs) > 1000
+    fast = [feasible_wrench_set(*job) for job in jobs]
+    monkeypatch.setattr(kernels, 'ENABLED', False)
+    for S, job in zip(fast, jobs):
+        ref = feasible_wrench_set(*job)
+        assert S.dimension == ref.dimension == 5
+        assert_same_polytope(S, ref)
