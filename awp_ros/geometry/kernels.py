@@ -2960,23 +2960,25 @@ _COLS5 = np.array([[1, 2, 3, 4], [0, 2, 3, 4], [0, 1, 3, 4], [0, 1, 2, 4], [0, 1
 
 
 @_jit(inline=True, fastmath=True)
+def _row_pair_minors(V, r, c0, c1, c2, c3):
+    """Return the 2x2 minors of rows r, r + 1 of V on columns (01, 02, 03, 12, 13, 23)."""
+    return (V[r, c0] * V[r + 1, c1] - V[r, c1] * V[r + 1, c0],
+            V[r, c0] * V[r + 1, c2] - V[r, c2] * V[r + 1, c0],
+            V[r, c0] * V[r + 1, c3] - V[r, c3] * V[r + 1, c0],
+            V[r, c1] * V[r + 1, c2] - V[r, c2] * V[r + 1, c1],
+            V[r, c1] * V[r + 1, c3] - V[r, c3] * V[r + 1, c1],
+            V[r, c2] * V[r + 1, c3] - V[r, c3] * V[r + 1, c2])
+
+
+@_jit(inline=True, fastmath=True)
 def _cross5(V, out):
     """Write a with ``a . y = det[V_0; V_1; V_2; V_3; y]`` (V (4, 5)) to out; return |a|."""
     acc = 0.0
     for i in range(5):
         c0, c1, c2, c3 = _COLS5[i, 0], _COLS5[i, 1], _COLS5[i, 2], _COLS5[i, 3]
-        m01 = V[0, c0] * V[1, c1] - V[0, c1] * V[1, c0]
-        m02 = V[0, c0] * V[1, c2] - V[0, c2] * V[1, c0]
-        m03 = V[0, c0] * V[1, c3] - V[0, c3] * V[1, c0]
-        m12 = V[0, c1] * V[1, c2] - V[0, c2] * V[1, c1]
-        m13 = V[0, c1] * V[1, c3] - V[0, c3] * V[1, c1]
-        m23 = V[0, c2] * V[1, c3] - V[0, c3] * V[1, c2]
-        n01 = V[2, c0] * V[3, c1] - V[2, c1] * V[3, c0]
-        n02 = V[2, c0] * V[3, c2] - V[2, c2] * V[3, c0]
-        n03 = V[2, c0] * V[3, c3] - V[2, c3] * V[3, c0]
-        n12 = V[2, c1] * V[3, c2] - V[2, c2] * V[3, c1]
-        n13 = V[2, c1] * V[3, c3] - V[2, c3] * V[3, c1]
-        n23 = V[2, c2] * V[3, c3] - V[2, c3] * V[3, c2]
+        m01, m02, m03, m12, m13, m23 = _row_pair_minors(V, 0, c0, c1, c2, c3)
+        n01, n02, n03, n12, n13, n23 = _row_pair_minors(V, 2, c0, c1, c2, c3)
+        # Laplace along rows (0, 1): det = sum of signed products of complementary minors.
         d = m01 * n23 - m02 * n13 + m03 * n12 + m12 * n03 - m13 * n02 + m23 * n01
         out[i] = d if i % 2 == 0 else -d
         acc += d * d
@@ -3004,7 +3006,12 @@ def _lifted_checks5(Mk, checks, mask, cone_tol, S, tol):
 
 @_jit(inline=True, fastmath=True)
 def _slot_signs5(S, tol, a, na):
-    """:func:`_slot_signs` in R^5: (pos, neg) of one leg's face class at a."""
+    """
+    :func:`_slot_signs` in R^5: (pos, neg) of one leg's face class at a.
+
+    A copy of its loops, not a call: the R^4 one keeps its dot product unrolled by hand for
+    the slice search's innermost loop (a loop over the length there cost that search time).
+    """
     f = -np.inf
     h = np.inf
     for s in range(S.shape[0]):
