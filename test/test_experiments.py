@@ -100,3 +100,20 @@ def test_flat_pair_ab_times_both_searches_and_restores_the_compiled_one():
     assert set(out) == {'numpy', 'compiled'}
     assert all(len(v) == len(flat_pair_ab.PAIRS) and min(v) > 0.0 for v in out.values())
     assert mf._flat_pair is compiled
+
+
+def test_every_report_of_the_default_bag_has_the_fws_verdict_of_its_own_joint_state():
+    """
+    ``feasible`` is this joint state's FWS verdict on every report, with the FWS at 10 Hz.
+
+    ``fws_verdict_age.count`` replays the default bag with the default parameters (the FWS at
+    ``fws_rate_hz``, 10 Hz) and computes an FWS for every joint state: each report's
+    ``feasible`` must equal the FWP's verdict and that FWS's (three or more legs: by the
+    feasible region; two: by the one-dimensional LP). The latest FWS's verdict, which
+    two-leg reports carried before session 21, would differ on the trot of this bag.
+    """
+    from fws_verdict_age import count
+    out = count()
+    assert {k: c['reports'] for k, c in out.items()} == {2: 1201, 3: 1800, 4: 2800}
+    assert all(c['differs'] == 0 for c in out.values())
+    assert out[2]['latest differs'] > 50

@@ -13,7 +13,7 @@ the input topics. The pipeline is built from the node's parameters by
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 import time
 from typing import TextIO
 
@@ -25,7 +25,7 @@ from awp_ros.bags.summary import ReplaySummary, summarize_reports
 from awp_ros.bags.writer import BagWriter
 from awp_ros.errors import BagError
 
-__all__ = ['check_input_topics', 'replay_bag']
+__all__ = ['check_input_topics', 'pipeline_cycles', 'replay_bag']
 
 
 def check_input_topics(info, topics: Mapping[str, str], *, use_imu: bool,
@@ -55,6 +55,32 @@ def check_input_topics(info, topics: Mapping[str, str], *, use_imu: bool,
                            f'{topic!r} has type {found!r}; expected {msgtype}')
         have[role] = topic
     return have
+
+
+def pipeline_cycles(pipeline, in_bag, *, topics: Mapping[str, str] | None = None) -> Iterator:
+    """
+    Feed a bag's inputs to the pipeline in recorded order; yield each joint state's cycle.
+
+    What :func:`replay_bag` does without writing a bag: the same topics and roles
+    (:func:`check_input_topics`), each input deserialised into the class the node receives.
+    Yields the :class:`~awp_ros.ros.cycle.Cycle` of every joint state, in order.
+
+    :raises BagError: unreadable bag, missing input topic, wrong types.
+    """
+    from rclpy.serialization import deserialize_message
+
+    roles = check_input_topics(bag_info(in_bag), topics or {}, use_imu=pipeline.params.use_imu,
+                               use_contacts=pipeline.params.contact_source == 'topic')
+    role_of = {topic: role for role, topic in roles.items()}
+    classes = {topic: message_class(INPUT_TOPICS[role][1]) for topic, role in role_of.items()}
+    for msg in read_bag(in_bag, topics=list(role_of)):
+        role, obj = role_of[msg.topic], deserialize_message(msg.data, classes[msg.topic])
+        if role == 'contacts':
+            pipeline.on_contacts(obj)
+        elif role == 'imu':
+            pipeline.on_imu(obj)
+        else:
+            yield pipeline.on_joint_state(obj)
 
 
 def replay_bag(in_bag, out_bag, *, pipeline, topics: Mapping[str, str] | None = None,

@@ -70,7 +70,7 @@ from awp_ros.runtime import tune_process
 from awp_ros.wrench.com_region import com_region
 from awp_ros.wrench.feasible_wrench_set import lifted_hull, minkowski_sum_of_lifts
 from awp_ros.wrench.friction_polytope import friction_polytopes, friction_rows
-from awp_ros.wrench.fws_queries import lp_directional_margins
+from awp_ros.wrench.fws_queries import lp_directional_margins, two_leg_contains
 
 __all__ = ['main', 'run_benchmark']
 
@@ -270,7 +270,9 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     polytopes' faces, the facet search (the numpy reference's grid search against the
     compiled slice search, :mod:`awp_ros.geometry.minkowski_facets`), the 12 directional
     margins on the FWS (the ratio test), and the whole FWS with its margins
-    (:func:`~awp_ros.evaluation.evaluator.compute_fws`) of the same postures.
+    (:func:`~awp_ros.evaluation.evaluator.compute_fws`) of the same postures; last the FWS's
+    verdict of two of the legs (a diagonal pair) by its one-dimensional LP
+    (:func:`~awp_ros.wrench.fws_queries.two_leg_contains`, the wrench on their hyperplane).
     """
     from awp_ros.geometry import kernels
     from awp_ros.wrench import contact_wrench_cone as cwc
@@ -304,6 +306,7 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     forces = [[leg.force_polytope for leg in result.legs.values()] for result in results]
     rows = evaluator._friction_rows(normals, mus)
     fws_sets = [compute_fws(*job)[0] for job in jobs]
+    two_legs = [_two_leg_case(result, (feet[0], feet[-1]), rows[[0, -1]]) for result in results]
     steps = {
         'force parallelepipeds': lambda c, i: parallelepipeds(c[1], c[2], lo, hi),
         'AWP zonotope': lambda c, i: actuation_wrench_polytope(c[0], c[3], c[4]),
@@ -322,6 +325,8 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
                                                        basis=searches[i][6]),
         'FWS directional margins': lambda c, i: directional_margins(fws_sets[i], jobs[i][2]),
         'FWS with margins': lambda c, i: compute_fws(*jobs[i]),
+        'two-leg FWS verdict (LP)': lambda c, i: two_leg_contains(
+            *two_legs[i], hull_tol=evaluator.hull_tol, feasibility_tol=evaluator.feasibility_tol),
     }
     times = {name: ([], []) for name in steps}
     enabled = kernels.ENABLED
@@ -338,6 +343,21 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     finally:
         kernels.ENABLED = enabled
     return {name: (float(np.median(a)), float(np.median(b))) for name, (a, b) in times.items()}
+
+
+def _two_leg_case(result, feet: tuple[str, str], rows: np.ndarray) -> tuple:
+    """
+    Return :func:`two_leg_contains`'s arguments for two legs of an evaluated posture.
+
+    The wrench is the posture's, projected on the two legs' hyperplane (a wrench off it is
+    answered before the LP).
+    """
+    legs = [result.legs[f] for f in feet]
+    p = np.array([leg.position for leg in legs])
+    nu = np.concatenate([np.cross(p[0], p[1]), p[1] - p[0]])
+    w = result.wrench - (nu @ result.wrench) / (nu @ nu) * nu
+    return (p, np.array([leg.force_polytope.A for leg in legs]),
+            np.array([leg.force_polytope.b for leg in legs]), rows, w)
 
 
 def _facet_search_case(job: tuple) -> tuple:

@@ -81,6 +81,7 @@ from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set_steps, minkow
 from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
 from awp_ros.wrench.friction_polytope import (friction_rows, FrictionPolytopes, inside_force,
                                               INSIDE_MARGIN)
+from awp_ros.wrench.fws_queries import two_leg_contains
 from awp_ros.wrench.wrench_polytope import (awp_zonotope, feasible_wrench_polytope, INTERIOR_TOL,
                                             zonotope_awp)
 
@@ -218,6 +219,10 @@ class FeasibilityEvaluator:
             feasible = feasible_region_of_rows(p, *force_rows[:2], rows, w)
         else:
             feasible = feasible_region(p, forces, rows, w[:3], w[3:]) if s.stance else None
+        # Two legs: the FWS's verdict by its one-dimensional LP (the region is a segment).
+        pair = two_leg_contains(p, *force_rows[:2], rows, w, hull_tol=self.hull_tol,
+                                feasibility_tol=tol) \
+            if len(s.stance) == 2 and force_rows is not None else None
         t5 = clock()
         fwp_r.region = sliced and region_of_slice(fwp, sliced[2])
         if fwp_r.region is None:
@@ -235,7 +240,8 @@ class FeasibilityEvaluator:
                                    measured, cwc=cwc, support_region=support,
                                    com_velocity=vcom, capture_point=capture,
                                    feasible_region_per_cycle=feasible,
-                                   capture_margin_per_cycle=_point_margin(feasible, capture))
+                                   capture_margin_per_cycle=_point_margin(feasible, capture),
+                                   two_leg_fws_feasible=pair)
         if fws:
             self.add_fws(result)
         return result
@@ -333,9 +339,32 @@ class FeasibilityEvaluator:
                        fwp=margin(result.fwp, 'FWP region'), fws=fws_r,
                        support_region=support, warnings=warnings,
                        feasible_region_per_cycle=feasible,
-                       capture_margin_per_cycle=_point_margin(feasible, result.capture_point))
+                       capture_margin_per_cycle=_point_margin(feasible, result.capture_point),
+                       two_leg_fws_feasible=self.two_leg_verdict_at(list(result.legs.values()),
+                                                                    w))
 
     # -- stages ------------------------------------------------------------------------
+
+    def two_leg_verdict_at(self, legs: Sequence[LegResult], wrench: np.ndarray) -> bool | None:
+        """
+        Return whether a wrench is in the FWS of two evaluated legs, without the FWS.
+
+        :func:`~awp_ros.wrench.fws_queries.two_leg_contains` (exact: the one-dimensional LP
+        of the legs' force distributions) on the legs' positions, force polytopes and
+        pyramids, with the evaluator's hull and feasibility tolerances; ``wrench``
+        ``[f; tau]`` [N, N.m]. None unless there are two legs with full-dimensional force
+        polytopes of the same row count (a singular leg's is flat): the FWS decides then.
+        """
+        forces = [leg.force_polytope for leg in legs]
+        if len(legs) != 2 or any(F.dimension != 3 for F in forces) or \
+                forces[0].A.shape != forces[1].A.shape:
+            return None
+        rows = self._friction_rows(np.array([leg.normal for leg in legs]),
+                                   np.array([leg.friction_coefficient for leg in legs]))
+        return two_leg_contains(np.array([leg.position for leg in legs]),
+                                np.array([F.A for F in forces]), np.array([F.b for F in forces]),
+                                rows, wrench, hull_tol=self.hull_tol,
+                                feasibility_tol=self.feasibility_tol)
 
     def feasible_region_at(self, legs: Sequence[LegResult], wrench: np.ndarray
                            ) -> ComRegion | None:

@@ -158,7 +158,9 @@ class FeasibilityResult:
     distribution: the FWS's slice) every cycle too, by projection
     (``feasible_region_per_cycle``, :func:`~awp_ros.wrench.com_region.feasible_region`),
     or from the FWS when that is not available (a singular leg); each None when not
-    computed; ``capture_margin_per_cycle`` the capture point's margin to the per-cycle one.
+    computed; ``capture_margin_per_cycle`` the capture point's margin to the per-cycle one;
+    ``two_leg_fws_feasible``: with two stance legs, whether the wrench is in the FWS this
+    cycle, without the FWS (:attr:`fws_feasible_per_cycle`; None otherwise).
     ``com_velocity``: ``c'`` (3,) [m/s], world axes, when the state had a ``base_twist``
     (else None); ``capture_point``: the instantaneous capture point ``c' / omega_0``
     (``omega_0 = sqrt(g / h)``, ``h`` the CoM height above the stance feet's mean height)
@@ -185,6 +187,7 @@ class FeasibilityResult:
     capture_point: np.ndarray | None = None
     feasible_region_per_cycle: ComRegion | None = None
     capture_margin_per_cycle: float = math.nan
+    two_leg_fws_feasible: bool | None = None
 
     @property
     def feasible_region(self) -> ComRegion | None:
@@ -227,7 +230,7 @@ class FeasibilityResult:
     @property
     def fws_feasible_per_cycle(self) -> bool | None:
         r"""
-        Return whether ``w`` is in the FWS, from this cycle's feasible region; None if unknown.
+        Return whether ``w`` is in the FWS, from this cycle's sets; None if unknown.
 
         .. math:: R = \{\delta : [f;\ \dot L + \delta \times f] \in \mathrm{FWS}\},
                   \qquad 0 \in R \iff w \in \mathrm{FWS}
@@ -237,10 +240,15 @@ class FeasibilityResult:
         FWS's verdict every cycle, without its H-rep. Given with three or more stance legs
         (a 6D FWS: the region is a polygon, or empty when no CoM position balances ``w``),
         when the region was computed this cycle (``feasible_region_per_cycle``), with
-        :meth:`~awp_ros.wrench.com_region.ComRegion.contains`'s tolerance (1e-9 m); None
-        otherwise (two legs: a 5D FWS, whose verdict allows ``w`` off its hull by the hull
-        tolerance).
+        :meth:`~awp_ros.wrench.com_region.ComRegion.contains`'s tolerance (1e-9 m). With two
+        legs (a 5D FWS, whose verdict allows ``w`` off its hull by the hull tolerance; the
+        region is a segment): ``two_leg_fws_feasible``, the one-dimensional LP of the legs'
+        force distributions (:func:`~awp_ros.wrench.fws_queries.two_leg_contains`), with the
+        FWS's hull and feasibility tolerances. None otherwise (no verdict this cycle: a
+        singular leg, one leg, no region).
         """
+        if len(self.stance) == 2:
+            return self.two_leg_fws_feasible
         region = self.feasible_region_per_cycle
         if region is None or len(self.stance) < 3:
             return None

@@ -36,6 +36,8 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
   normal-cone filter (a sparse wedge, the Hodge dual, the norm);
 * :func:`first_of_equal_rows`: the FWS's rows deduplicated (one hash-table pass);
 * :func:`ratio_test`: the directional margins' ratio test over every row in one pass;
+  :func:`two_leg_contains`: the FWS's verdict for two stance legs (a ratio test on the line
+  of their force distributions);
   :func:`slack_min`: the first row of least slack ``b - A w`` (the margins' inside test);
 * :func:`cycle_sets` and :func:`cycle_regions`: a control cycle's sets (with the margins'
   slacks) and its three CoM regions, each in one call of the kernels above;
@@ -87,7 +89,7 @@ __all__ = [
     'polygon_region', 'projected_polygon', 'ratio_test', 'segment_slice', 'solid_faces',
     'slice_facet_normals',
     'slice_facet_normal_parts', 'slack_min',
-    'sparse_wedge_table', 'survivor_normals', 'wedge_tables', 'wrench_slice',
+    'sparse_wedge_table', 'survivor_normals', 'two_leg_contains', 'wedge_tables', 'wrench_slice',
     'zonotope_facets']
 
 #: Whether the compiled kernels are used (numba importable and not disabled).
@@ -3568,7 +3570,7 @@ def ratio_test(A: np.ndarray, b: np.ndarray, w: np.ndarray, D: np.ndarray,
     rows with ``g > parallel_tol``, ``-t_minus_j = max s_i / g`` over those with
     ``g < -parallel_tol``; ``empty_j`` when ``-t_minus_j > t_plus_j + feasibility_tol`` or
     a row parallel to ``D_j`` has ``s_i < -feasibility_tol``. The numpy form is
-    :func:`awp_ros.geometry.margin._ratio_test` on ``s`` and ``D A^T``.
+    :func:`awp_ros.geometry.margin.line_interval` on ``s`` and ``D A^T``.
     """
     A = np.ascontiguousarray(A, dtype=float)
     D = np.ascontiguousarray(D, dtype=float)
@@ -3577,6 +3579,87 @@ def ratio_test(A: np.ndarray, b: np.ndarray, w: np.ndarray, D: np.ndarray,
     _ratio_test(A, np.ascontiguousarray(b, dtype=float), np.ascontiguousarray(w, dtype=float),
                 D, float(feasibility_tol), float(parallel_tol), t_hi, t_lo, empty)
     return t_hi, t_lo, empty
+
+
+@_jit(inline=True)
+def _line_rows(a, beta, sign, f0, u, tol, parallel_tol, bounds):
+    """
+    Cut ``bounds = [lo, hi]`` by the row ``sign a . (f0 + s u) <= beta`` (unit in ``a``).
+
+    Returns False when the row is parallel to ``u`` (``|a . u| <= parallel_tol |a|``) and
+    fails by more than ``tol`` (every ``s`` fails it).
+    """
+    na = np.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+    g = sign * (a[0] * u[0] + a[1] * u[1] + a[2] * u[2]) / na
+    r = (beta - sign * (a[0] * f0[0] + a[1] * f0[1] + a[2] * f0[2])) / na
+    if abs(g) <= parallel_tol:
+        return r >= -tol
+    if g > 0.0:
+        bounds[1] = min(bounds[1], r / g)
+    else:
+        bounds[0] = max(bounds[0], r / g)
+    return True
+
+
+@_jit
+def _two_leg_contains(P, A, b, R, w, hull_tol, tol, parallel_tol, feet_apart):
+    """Return 1 / 0 (in / not in the FWS of two legs), -1 without a hyperplane."""
+    p1, p2 = P[0], P[1]
+    d = p2 - p1
+    dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+    if not dd > feet_apart * feet_apart:
+        return -1
+    nu = np.empty(6)
+    nu[0] = p1[1] * p2[2] - p1[2] * p2[1]
+    nu[1] = p1[2] * p2[0] - p1[0] * p2[2]
+    nu[2] = p1[0] * p2[1] - p1[1] * p2[0]
+    nu[3:] = d
+    nn = 0.0
+    nw = 0.0
+    for i in range(6):
+        nn += nu[i] * nu[i]
+        nw += nu[i] * w[i]
+    off = nw / nn
+    if abs(off) * np.sqrt(nn) > hull_tol:
+        return 0
+    F = w[:3] - off * nu[:3]
+    tau = w[3:] - off * nu[3:]
+    g = np.empty(3)
+    g[0] = tau[0] - (p1[1] * F[2] - p1[2] * F[1])
+    g[1] = tau[1] - (p1[2] * F[0] - p1[0] * F[2])
+    g[2] = tau[2] - (p1[0] * F[1] - p1[1] * F[0])
+    f2 = np.empty(3)                       # (g x d) / |d|^2: d x f2 = g
+    f2[0] = (g[1] * d[2] - g[2] * d[1]) / dd
+    f2[1] = (g[2] * d[0] - g[0] * d[2]) / dd
+    f2[2] = (g[0] * d[1] - g[1] * d[0]) / dd
+    u = d / np.sqrt(dd)
+    f1 = F - f2                            # leg 1 takes F - f2 - s u: its rows with sign -1
+    bounds = np.array([-np.inf, np.inf])
+    for i in range(A.shape[1]):
+        if not (_line_rows(A[1, i], b[1, i], 1.0, f2, u, tol, parallel_tol, bounds)
+                and _line_rows(A[0, i], b[0, i], -1.0, -f1, u, tol, parallel_tol, bounds)):
+            return 0
+    for i in range(R.shape[1]):
+        if not (_line_rows(R[1, i], 0.0, 1.0, f2, u, tol, parallel_tol, bounds)
+                and _line_rows(R[0, i], 0.0, -1.0, -f1, u, tol, parallel_tol, bounds)):
+            return 0
+    return 1 if bounds[0] <= bounds[1] + tol else 0
+
+
+def two_leg_contains(positions: np.ndarray, force_A: np.ndarray, force_b: np.ndarray,
+                     pyramid_rows: np.ndarray, w: np.ndarray, hull_tol: float, tol: float,
+                     parallel_tol: float, feet_apart: float) -> int:
+    """
+    Return :func:`awp_ros.wrench.fws_queries.two_leg_contains` in one call: 1, 0, -1 (None).
+
+    The same one-dimensional LP, its ratio test over the legs' rows normalised on the fly
+    (its numpy form there is the reference).
+    """
+    return int(_two_leg_contains(
+        np.ascontiguousarray(positions, dtype=float), np.ascontiguousarray(force_A, dtype=float),
+        np.ascontiguousarray(force_b, dtype=float),
+        np.ascontiguousarray(pyramid_rows, dtype=float), np.ascontiguousarray(w, dtype=float),
+        float(hull_tol), float(tol), float(parallel_tol), float(feet_apart)))
 
 
 def compile_all() -> None:
@@ -3636,6 +3719,9 @@ def compile_all() -> None:
                      index, 3, 2, 1, 0.0)                   # the general kernel
     first_of_equal_rows(g, 10)
     ratio_test(g.T, np.ones(8), np.zeros(6), np.eye(6), 1e-6, 1e-9)
+    two_leg_contains(g[:2, :3], box[None].repeat(2, 0), np.ones((2, 6)),
+                     -box[None, :4].repeat(2, 0), np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1.0,
+                     1e-6, 1e-12, 1e-6)
     slack_min(g.T, np.ones(8), np.zeros(6))
     inside_forces(cube[None], box[None], np.ones((1, 6)), -box[None, :3], 1e-6)
     # The per-cycle calls, with read-only tables and rays as the evaluator passes them.

@@ -47,7 +47,7 @@ from awp_ros.errors import GeometryError, InputError
 from awp_ros.geometry import kernels
 from awp_ros.geometry.polytope import Polytope
 
-__all__ = ['least_slack', 'SetMargin', 'directional_margins', 'polytope_margin']
+__all__ = ['least_slack', 'line_interval', 'SetMargin', 'directional_margins', 'polytope_margin']
 
 
 @dataclass
@@ -224,7 +224,7 @@ def directional_margins(P: Polytope, w: np.ndarray, directions: np.ndarray | Non
         return t_plus, t_minus
     s = P.b - P.A @ w
     Gt = D @ P.A.T  # (k, m): one row per direction, reductions along the long axis
-    t_plus, t_minus, empty = _ratio_test(s, Gt, feasibility_tol, parallel_tol)
+    t_plus, t_minus, empty = line_interval(s, Gt, feasibility_tol, parallel_tol)
     if U.shape[1] == n:
         t_plus[empty] = np.nan
         t_minus[empty] = np.nan
@@ -246,9 +246,16 @@ def directional_margins(P: Polytope, w: np.ndarray, directions: np.ndarray | Non
     return t_plus, t_minus
 
 
-def _ratio_test(s: np.ndarray, Gt: np.ndarray, feasibility_tol: float,
-                parallel_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Return ``(t_hi, -t_lo, empty)`` of ``{t : t Gt[j, i] <= s_i for every row i}``."""
+def line_interval(s: np.ndarray, Gt: np.ndarray, feasibility_tol: float,
+                  parallel_tol: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Return ``(t_hi, -t_lo, empty)`` of ``{t : t Gt[j, i] <= s_i for every row i}``.
+
+    The ratio test of the lines ``x + t d_j`` in ``{A x <= b}`` (``s = b - A x``,
+    ``Gt[j] = A d_j``); ``empty_j`` when ``t_lo > t_hi + feasibility_tol`` or a row parallel
+    to ``d_j`` (``|Gt| <= parallel_tol``) has ``s_i < -feasibility_tol``. Compiled:
+    :func:`awp_ros.geometry.kernels.ratio_test`.
+    """
     pos = Gt > parallel_tol
     neg = Gt < -parallel_tol
     with np.errstate(divide='ignore', invalid='ignore'):

@@ -153,8 +153,8 @@ class PipelineParams:
         'fws_worker false) and enters the reports from the '
         'first joint state stamped >= t + fws_lag_s, the same in the node and the '
         'replay; after a stance change, until its FWS arrives, fws_* are NaN and '
-        'feasible (with two stance legs) is fwp_feasible; 0 = in the loop, in the cycle '
-        'it is due')
+        "feasible is this cycle's verdict (fwp_feasible without one: one leg, a singular "
+        'leg); 0 = in the loop, in the cycle it is due')
     marker_rate_hz: float = _param(
         30.0, 'marker publication rate by joint-state stamps [Hz]; 0 = no markers')
     marker_force_scale: float = _param(

@@ -235,9 +235,10 @@ def report_bytes(header: Header, result: FeasibilityResult | None, *, compute_ti
     :func:`error_report` the report of a message that was not evaluated (``result`` None:
     margins NaN, not feasible). ``feasible`` is ``fwp_feasible`` and the wrench in the FWS:
     ``fws_feasible`` when the FWS was computed for this message (FWS is a subset of FWP),
-    else this cycle's verdict from the feasible region when there is one
-    (:attr:`~awp_ros.evaluation.result.FeasibilityResult.fws_feasible_per_cycle`: three or
-    more stance legs), else the latest FWS's; never true when the current FWP excludes the
+    else this cycle's verdict when there is one
+    (:attr:`~awp_ros.evaluation.result.FeasibilityResult.fws_feasible_per_cycle`: the
+    feasible region with three or more stance legs, an LP with two), else the latest FWS's;
+    never true when the current FWP excludes the
     wrench.
 
     :param header: stamp of the answered joint state; frame_id the wrench frame.
@@ -280,7 +281,7 @@ def report_bytes(header: Header, result: FeasibilityResult | None, *, compute_ti
         at = stamp if fws_stamp is None else fws_stamp
         directional = (plus, minus) + ((at.sec, at.nanosec) if fws is not None else (0, 0))
         # The FWS's verdict when it was computed for this joint state, else this cycle's
-        # feasible region's (three or more legs), else the latest FWS's.
+        # (three or more legs: the feasible region; two: their LP), else the latest FWS's.
         fresh = fws is not None and (fws_stamp is None or fws_stamp == stamp)
         per_cycle = None if fresh else result.fws_feasible_per_cycle
         in_fws = (sets[2][5] or fws_pending and fws is None) if per_cycle is None else per_cycle

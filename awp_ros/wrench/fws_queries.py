@@ -15,6 +15,11 @@ in the barycentric weights (1), solved exactly (simplex) with warm starts. This 
 per-cycle questions (is ``w`` feasible, how much extra force or moment along each axis) in
 about a millisecond for HyQ's four legs, while the exact H-rep and Euclidean margin
 (:mod:`awp_ros.wrench.feasible_wrench_set`) take several.
+
+With two stance legs membership is a one-dimensional LP (:func:`two_leg_contains`): a force
+along the line through both feet is the same wrench from either foot, so the force
+distributions of a wrench on the legs' hyperplane form a line, cut by each leg's rows in an
+interval (a few microseconds, every cycle).
 """
 
 from __future__ import annotations
@@ -24,9 +29,17 @@ from typing import Sequence
 import numpy as np
 
 from awp_ros.errors import InputError
+from awp_ros.geometry import kernels
+from awp_ros.geometry.linalg import cross3
+from awp_ros.geometry.margin import line_interval
 from awp_ros.wrench.wrench_polytope import lift_matrices
 
-__all__ = ['lp_directional_margins']
+__all__ = ['lp_directional_margins', 'two_leg_contains']
+
+#: Feet closer than this [m] span no hyperplane: :func:`two_leg_contains` answers None.
+FEET_APART = 1e-6
+#: ``|a . u|`` below this (unit rows and line) counts as a row parallel to the line.
+PARALLEL_TOL = 1e-12
 
 
 def lp_directional_margins(positions: np.ndarray, vertex_sets: Sequence[np.ndarray],
@@ -80,6 +93,70 @@ def lp_directional_margins(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
         if hi is not None and lo is not None:
             t_plus[i], t_minus[i] = hi * scale, -lo * scale
     return member, t_plus, t_minus
+
+
+def two_leg_contains(positions: np.ndarray, force_A: np.ndarray, force_b: np.ndarray,
+                     pyramid_rows: np.ndarray, w: np.ndarray, *, hull_tol: float,
+                     feasibility_tol: float = 1e-6) -> bool | None:
+    r"""
+    Return whether ``w`` is in the FWS of two stance legs, by an LP on the definition.
+
+    .. math::
+
+        \nu = (p_1 \times p_2,\ p_2 - p_1), \qquad
+        \bar w = w - \frac{\nu \cdot w}{|\nu|^2}\, \nu = (F, \tau)
+
+        \bar w = L_1 f_1 + L_2 f_2 \iff f_1 = F - f_2,\quad
+        f_2 = \frac{g \times d}{|d|^2} + s\, \frac{d}{|d|},\quad
+        g = \tau - p_1 \times F,\ d = p_2 - p_1,\ s \in \mathbb{R}
+
+    The FWS of two legs lies in the hyperplane ``nu . x = 0`` of their lifts (a force along
+    ``d`` is the same wrench from either foot). As for the FWS's own verdict
+    (:func:`~awp_ros.geometry.margin.polytope_margin`), ``w`` is in it when it is within
+    ``hull_tol`` of the hyperplane and its projection ``w_bar`` is in the set: when some
+    ``s`` puts ``f_k`` in leg k's friction-bounded force polytope, ``A_k f_k <= b_k`` (torque
+    limits) and ``R_k f_k <= 0`` (friction pyramid and ``n . f >= 0``). Each of the legs'
+    (unit) rows bounds ``s`` on one side (the ratio test), or, parallel to ``d``, holds or
+    fails for every ``s``; the rows hold to ``feasibility_tol`` [N].
+
+    :param positions: (2, 3) the feet relative to the CoM [m], world-aligned axes.
+    :param force_A: (2, m, 3) the legs' force polytopes' rows, ``force_A[k] f <= force_b[k]``
+        (full-dimensional force polytopes: a singular leg's flat one is not of this form).
+    :param force_b: (2, m) [N].
+    :param pyramid_rows: (2, N + 1, 3) unit rows ``R_k f <= 0``
+        (:func:`~awp_ros.wrench.friction_polytope.friction_rows`).
+    :param w: (6,) the wrench ``[f; tau]`` [N, N.m], about the CoM, same axes.
+    :param hull_tol: distance [N, N.m] of ``w`` from the hyperplane up to which it counts as
+        on it (the evaluator's ``hull_tolerance``).
+    :param feasibility_tol: tolerance on the legs' rows [N].
+    :return: the verdict, or None when the feet are less than :data:`FEET_APART` apart
+        (no hyperplane).
+    """
+    if kernels.ENABLED:                   # one compiled call (the code below is its reference)
+        verdict = kernels.two_leg_contains(positions, force_A, force_b, pyramid_rows, w,
+                                           hull_tol, feasibility_tol, PARALLEL_TOL, FEET_APART)
+        return None if verdict < 0 else bool(verdict)
+    p1, p2 = np.asarray(positions, dtype=float)
+    w = np.asarray(w, dtype=float)
+    d = p2 - p1
+    dd = float(d @ d)
+    if not dd > FEET_APART ** 2:
+        return None
+    nu = np.concatenate([cross3(p1, p2), d])
+    off = float(nu @ w) / float(nu @ nu)
+    if abs(off) * np.sqrt(float(nu @ nu)) > hull_tol:
+        return False
+    wb = w - off * nu
+    F, tau = wb[:3], wb[3:]
+    f2 = cross3(tau - cross3(p1, F), d) / dd
+    u = d / np.sqrt(dd)
+    A = np.concatenate([force_A[1], pyramid_rows[1], -force_A[0], -pyramid_rows[0]])
+    b = np.concatenate([force_b[1], np.zeros(len(pyramid_rows[1])),
+                        force_b[0] - force_A[0] @ F, -(pyramid_rows[0] @ F)])
+    scale = np.sqrt(np.einsum('ij,ij->i', A, A))
+    A, b = A / scale[:, None], b / scale
+    empty = line_interval(b - A @ f2, (A @ u)[None, :], feasibility_tol, PARALLEL_TOL)[2]
+    return not bool(empty[0])
 
 
 class _HighsLp:

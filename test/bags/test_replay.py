@@ -15,7 +15,7 @@ import pytest
 from awp_ros.bags.message_types import typestore
 from awp_ros.bags.progress import Progress
 from awp_ros.bags.reader import BagMessage, TopicInfo
-from awp_ros.bags.replay import replay_bag
+from awp_ros.bags.replay import pipeline_cycles, replay_bag
 from awp_ros.bags.summary import summarize_reports
 from awp_ros.bags.writer import BagWriter
 from awp_ros.cli.replay import main as replay_main, parse_override
@@ -92,6 +92,22 @@ def test_one_report_per_joint_state_stamped_and_logged_like_it(replayed, gait_ba
                          '/awp_node/fws', '/awp_node/leg_polytopes', '/awp_node/markers'}
     assert len(msgs['/awp_node/awp']) == 801
     assert 0 < len(msgs['/awp_node/markers']) < 801           # throttled to 30 Hz
+
+
+def test_pipeline_cycles_give_the_replayed_reports(replayed_measured, gait_bag):
+    """``pipeline_cycles`` feeds the inputs as ``replay_bag`` does: the same reports, in order."""
+    out, _ = replayed_measured
+    params, base_dir = load_parameters('hyq', {'use_imu': True})
+    cycles = pipeline_cycles(Pipeline.from_parameters(params, base_dir=base_dir), gait_bag)
+    reports = [c.report for c in cycles]
+    replayed = [rep for _, rep in _read(out, [REPORT])[REPORT]]
+    assert len(reports) == len(replayed) == 801
+    for mine, theirs in zip(reports, replayed):
+        assert _ns(mine.header.stamp) == _ns(theirs.header.stamp)
+        assert list(mine.stance_feet) == list(theirs.stance_feet)
+        assert (mine.feasible, mine.fwp_margin) == (theirs.feasible, theirs.fwp_margin)
+        assert mine.fws_margin == theirs.fws_margin or \
+            math.isnan(mine.fws_margin) and math.isnan(theirs.fws_margin)
 
 
 def test_replayed_margins_equal_awp_eval_on_sampled_states(replayed, gait_bag, capsys):

@@ -367,28 +367,30 @@ def test_fws_verdict_every_cycle_from_the_feasible_region(hyq, K):
     The CoM in this cycle's feasible region == the wrench in the FWS (LP on the definition).
 
     With three or more legs ``fws_feasible_per_cycle`` is the FWS's verdict without the FWS
-    (``delta = 0`` in its slice), and ``feasible`` of an evaluation without the FWS uses it;
-    with two legs it is None (the FWP's verdict stands in).
+    (``delta = 0`` in its slice), with two legs the one-dimensional LP of the legs' force
+    distributions (``two_leg_fws_feasible``); ``feasible`` of an evaluation without the FWS
+    uses it.
     """
     rng = np.random.default_rng(60 + K)
     st = perturbed(hyq, rng, spread=0.05, stance=hyq.feet[:K])
     base = hyq.evaluate(st)
+    S = base.fws.polytope
     seen = set()
     for _ in range(24):
         # Around the standing wrench, inside or outside: +-400 N, +-80 N.m.
         w = base.wrench + rng.uniform(-1.0, 1.0, size=6) * [400, 400, 400, 80, 80, 80]
+        if K == 2:           # onto the legs' hyperplane (the FWS's hull): both verdicts occur
+            w = S.hull_origin + S.hull_basis @ (S.hull_basis.T @ (w - S.hull_origin))
         r = hyq.evaluate(st, wrench=w, fws=False)
         per_cycle = r.fws_feasible_per_cycle
-        if K < 3:
-            assert per_cycle is None and r.feasible == r.fwp.feasible
-            continue
+        assert per_cycle is not None
         assert r.feasible == bool(per_cycle and r.fwp.feasible)
         full = hyq.evaluate(st, wrench=w)
         if abs(full.fws.margin) < 1e-3:                 # on the boundary: no verdict
             continue
         assert per_cycle == full.fws.feasible == wrench_lp(hyq, st, 'fws', w=w), full.fws.margin
         seen.add(per_cycle)
-    assert seen == ({True, False} if K >= 3 else set())
+    assert seen == {True, False}
 
 
 def test_fws_directional_margins_are_exact_lps(hyq):

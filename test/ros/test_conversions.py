@@ -195,10 +195,14 @@ def test_every_report_field_is_the_results(evaluator, stance, efforts):
             if pending:
                 ref.feasible = ref.fwp_feasible
             # Without an FWS of this joint state: this cycle's verdict, the CoM in the
-            # feasible region (three or more legs), else the latest FWS's as above.
+            # feasible region (three or more legs) or the two legs' LP, else the latest
+            # FWS's as above.
             region = r.feasible_region_per_cycle
             if fws_stamp is not header.stamp and region is not None and len(r.stance) >= 3:
                 ref.feasible = ref.fwp_feasible and region.contains(np.zeros(2))
+            if fws_stamp is not header.stamp and len(r.stance) == 2:
+                assert r.two_leg_fws_feasible is not None
+                ref.feasible = ref.fwp_feasible and r.two_leg_fws_feasible
             assert _same(rep, ref)
 
 

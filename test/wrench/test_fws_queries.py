@@ -75,3 +75,93 @@ def test_lp_directional_margins_no_leg_and_empty_leg():
     legs = [hyq_like_leg(rng), np.zeros((0, 3))]
     member, t_plus, _ = lp_directional_margins(hyq_feet(rng, 2), legs, w)
     assert not member and np.all(np.isnan(t_plus))
+
+
+# -- Two stance legs: the verdict every cycle (two_leg_contains) -----------------------------
+
+def _linprog_contains(legs, rows, w_bar, tol=1e-7) -> bool:
+    """Whether ``L_1 f_1 + L_2 f_2 = w_bar`` has a solution within the legs' rows (HiGHS)."""
+    from scipy.optimize import linprog
+    from awp_ros.wrench.wrench_polytope import lift_matrices
+    L = lift_matrices(np.array([leg.position for leg in legs]))
+    A_ub = np.zeros((0, 6))
+    b_ub = np.zeros(0)
+    for k, leg in enumerate(legs):
+        block = np.zeros((0, 6))
+        pyramid = (rows[k], np.zeros(len(rows[k])))
+        for A, b in ((leg.force_polytope.A, leg.force_polytope.b), pyramid):
+            n = np.linalg.norm(A, axis=1)
+            M = np.zeros((len(A), 6))
+            M[:, 3 * k:3 * k + 3] = A / n[:, None]
+            block = np.vstack([block, M])
+            b_ub = np.concatenate([b_ub, b / n + tol])
+        A_ub = np.vstack([A_ub, block])
+    res = linprog(np.zeros(6), A_ub=A_ub, b_ub=b_ub, A_eq=np.hstack(list(L)), b_eq=w_bar,
+                  bounds=[(None, None)] * 6, method='highs')
+    return res.status == 0
+
+
+def _two_leg_cases(seed: int, count: int):
+    """Yield (evaluator, result with its FWS, wrenches) on random HyQ two-leg postures."""
+    from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+    evaluator = FeasibilityEvaluator('hyq')
+    rng = np.random.default_rng(seed)
+    pairs = [('lf_foot', 'rh_foot'), ('rf_foot', 'lh_foot'), ('lf_foot', 'rf_foot'),
+             ('lf_foot', 'lh_foot')]
+    for i in range(count):
+        state = evaluator.standing_state(stance=pairs[i % len(pairs)])
+        for name in state.joint_positions:
+            state.joint_positions[name] += rng.uniform(-0.15, 0.15)
+        result = evaluator.evaluate(state)
+        S = result.fws.polytope
+        U, o = S.hull_basis, S.hull_origin
+        nu = np.linalg.svd(U.T)[2][-1]                      # the hull's normal, from its basis
+        pts = []
+        for _ in range(6):                                   # points of the FWS
+            x = np.zeros(6)
+            for leg in result.legs.values():
+                V = leg.friction_polytope.vertices
+                f = V.T @ rng.dirichlet(np.ones(len(V)))
+                x += np.concatenate([f, np.cross(leg.position, f)])
+            pts.append(x)
+        wrenches = []
+        for x in pts:
+            d = U @ rng.normal(size=U.shape[1])              # a direction in the hull
+            t = min((S.b[j] - S.A[j] @ x) / (S.A[j] @ d) for j in range(len(S.b))
+                    if S.A[j] @ d > 1e-12)                   # where x + t d leaves the FWS
+            for scale in (0.5, 0.999, 1.001, 1.5):
+                wrenches.append(x + scale * t * d)
+            for off in (0.9, 1.1):                           # off the hull, near hull_tol
+                wrenches.append(x + 0.5 * t * d + off * evaluator.hull_tol * nu)
+        wrenches.append(result.wrench)
+        yield evaluator, result, o, U, nu, wrenches
+
+
+@pytest.mark.parametrize('compiled', [True, False])
+def test_two_leg_verdict_agrees_with_the_fws_and_an_lp_on_the_definition(compiled, monkeypatch):
+    """
+    The one-dimensional LP, the FWS's H-rep and HiGHS on the definition give one verdict.
+
+    Random HyQ postures on every kind of leg pair (diagonal, front, side); wrenches in the
+    hull on both sides of the boundary (0.1 % from it), deep inside and far outside, and off
+    the hull just inside and outside the hull tolerance; the compiled kernel and its numpy
+    reference.
+    """
+    from awp_ros.geometry import kernels
+    if compiled and not kernels.ENABLED:
+        pytest.skip('the compiled kernels are off')
+    monkeypatch.setattr(kernels, 'ENABLED', compiled)
+    seen = {True: 0, False: 0}
+    for evaluator, result, o, U, nu, wrenches in _two_leg_cases(41, 8):
+        legs = list(result.legs.values())
+        rows = evaluator._friction_rows(np.array([leg.normal for leg in legs]),
+                                        np.array([leg.friction_coefficient for leg in legs]))
+        for w in wrenches:
+            verdict = evaluator.two_leg_verdict_at(legs, w)
+            fws = polytope_margin(result.fws.polytope, w, hull_tol=evaluator.hull_tol,
+                                  feasibility_tol=evaluator.feasibility_tol).feasible
+            w_bar = o + U @ (U.T @ (w - o))
+            lp = abs(nu @ (w - o)) <= evaluator.hull_tol and _linprog_contains(legs, rows, w_bar)
+            assert verdict is not None and verdict == bool(fws) == bool(lp)
+            seen[verdict] += 1
+    assert seen[True] > 50 and seen[False] > 50
