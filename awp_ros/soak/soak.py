@@ -42,7 +42,8 @@ one JSON object.
 
 With ``--steal 0.4`` the drive runs on an emulated slower machine (real-time threads take that
 share of every CPU, :mod:`awp_ros.soak.slow_machine`, from the moment the node spins); the
-slowdown, measured then, is printed and goes to the JSON (``slow_machine``).
+slowdown (a reference workload timed before the node starts, then with the stealers) is printed
+and goes to the JSON (``slow_machine``).
 
 The helpers (:class:`Probe`, :func:`start_node`, :class:`ProcessMonitor`,
 :func:`run_soak`) are used by the tests too.
@@ -116,8 +117,9 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
         ``result.outputs``.
     :param steal: > 0: the drive on an emulated slower machine, this share of every CPU
         taken by real-time stealers from the moment the node spins until it is stopped
-        (:class:`awp_ros.soak.slow_machine.SlowMachine`; the slowdown, measured then on the
-        idle node, goes to ``result.slow_machine``).
+        (:class:`awp_ros.soak.slow_machine.SlowMachine`; the slowdown, against the reference
+        workload timed before the node starts and then with the stealers on the idle node,
+        goes to ``result.slow_machine``).
     """
     from awp_ros_msgs.msg import FeasibilityReport
     from diagnostic_msgs.msg import DiagnosticArray
@@ -130,6 +132,8 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
     drain_timeout_s = 2 * duration_s + 30 if drain_timeout_s is None else drain_timeout_s
     result = SoakResult(robot, rate_hz, duration_s, qos_depth)
     slow = SlowMachine(steal) if steal > 0.0 else None
+    if slow is not None:
+        slow.measure_fast()                # the reference without stealers, before the node
     ns = namespace.rstrip('/')
     node_params = {'qos_depth': qos_depth, **(params or {})}
     proc = start_node(env=env, robot=robot, namespace=ns, params=node_params)

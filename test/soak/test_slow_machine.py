@@ -56,6 +56,22 @@ def test_the_stealers_slow_every_thread_by_about_their_share():
     assert 'slower' in slow.describe()
 
 
+def test_a_reference_timed_before_start_is_the_calibrations():
+    # The soak times the reference on the quiet machine, before its node starts.
+    slow = SlowMachine(0.4)
+    fast = slow.measure_fast()
+    try:
+        slow.start()
+    except ProcessError as exc:
+        if 'refused' in str(exc):
+            pytest.skip(f'no real-time priority here: {exc}')
+        raise
+    try:
+        assert slow.calibration.fast_ms == fast and slow.calibration.slow_ms > fast
+    finally:
+        slow.stop()
+
+
 def test_a_stealer_exits_when_its_parent_dies():
     code = ('import subprocess, sys\n'
             'p = subprocess.Popen([sys.executable, "-m", "awp_ros.soak.slow_machine", '
