@@ -24,8 +24,7 @@ def _loop_s() -> float:
     return best
 
 
-def _slow(steal: float, **kwargs) -> SlowMachine:
-    slow = SlowMachine(steal, **kwargs)
+def _start(slow: SlowMachine) -> SlowMachine:
     try:
         slow.start()
     except ProcessError as exc:
@@ -33,6 +32,10 @@ def _slow(steal: float, **kwargs) -> SlowMachine:
             pytest.skip(f'no real-time priority here: {exc}')
         raise
     return slow
+
+
+def _slow(steal: float, **kwargs) -> SlowMachine:
+    return _start(SlowMachine(steal, **kwargs))
 
 
 def test_the_stealers_slow_every_thread_by_about_their_share():
@@ -60,12 +63,7 @@ def test_a_reference_timed_before_start_is_the_calibrations():
     # The soak times the reference on the quiet machine, before its node starts.
     slow = SlowMachine(0.4)
     fast = slow.measure_fast()
-    try:
-        slow.start()
-    except ProcessError as exc:
-        if 'refused' in str(exc):
-            pytest.skip(f'no real-time priority here: {exc}')
-        raise
+    _start(slow)
     try:
         assert slow.calibration.fast_ms == fast and slow.calibration.slow_ms > fast
     finally:
