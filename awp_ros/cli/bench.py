@@ -352,10 +352,11 @@ def _two_leg_case(result, feet: tuple[str, str], rows: np.ndarray) -> tuple:
     The wrench is the posture's, projected on the two legs' hyperplane (a wrench off it is
     answered before the LP).
     """
+    from awp_ros.geometry import kernels
     legs = [result.legs[f] for f in feet]
     p = np.array([leg.position for leg in legs])
-    nu = np.concatenate([np.cross(p[0], p[1]), p[1] - p[0]])
-    w = result.wrench - (nu @ result.wrench) / (nu @ nu) * nu
+    nu = kernels.pair_hyperplane(p)[0]                   # unit normal of their hyperplane
+    w = result.wrench - (nu @ result.wrench) * nu
     return (p, np.array([leg.force_polytope.A for leg in legs]),
             np.array([leg.force_polytope.b for leg in legs]), rows, w)
 

@@ -497,6 +497,14 @@ def _lifted_zonotope(P, C, H, subsets, others, zero_tol, certify, rank_tol, inci
 
 
 @_jit(inline=True)
+def _pair_normal(P):
+    """Return ``(p_1 x p_2, p_2 - p_1)``, the normal of two feet's wrenches (not unit)."""
+    x1, y1, z1, x2, y2, z2 = P[0, 0], P[0, 1], P[0, 2], P[1, 0], P[1, 1], P[1, 2]
+    return np.array((y1 * z2 - z1 * y2, z1 * x2 - x1 * z2, x1 * y2 - y1 * x2,
+                     x2 - x1, y2 - y1, z2 - z1))
+
+
+@_jit(inline=True)
 def _pair_hyperplane(P):
     r"""
     Return the unit normal ``n`` of the hyperplane of two feet's wrenches and a basis of it.
@@ -506,9 +514,7 @@ def _pair_hyperplane(P):
     is the Householder reflection of ``n`` onto a coordinate axis without that axis's column.
     ``n = 0`` (coincident feet) gives ``U`` of zeros, which the caller's certificate refuses.
     """
-    x1, y1, z1, x2, y2, z2 = P[0, 0], P[0, 1], P[0, 2], P[1, 0], P[1, 1], P[1, 2]
-    n = np.array((y1 * z2 - z1 * y2, z1 * x2 - x1 * z2, x1 * y2 - y1 * x2,
-                  x2 - x1, y2 - y1, z2 - z1))
+    n = _pair_normal(P)
     U = np.zeros((6, 5))
     norm = np.sqrt(_norm2(n))
     if not norm > 0.0:
@@ -3609,11 +3615,7 @@ def _two_leg_contains(P, A, b, R, w, hull_tol, tol, parallel_tol, feet_apart):
     dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
     if not dd > feet_apart * feet_apart:
         return -1
-    nu = np.empty(6)
-    nu[0] = p1[1] * p2[2] - p1[2] * p2[1]
-    nu[1] = p1[2] * p2[0] - p1[0] * p2[2]
-    nu[2] = p1[0] * p2[1] - p1[1] * p2[0]
-    nu[3:] = d
+    nu = _pair_normal(P)
     nn = 0.0
     nw = 0.0
     for i in range(6):
