@@ -104,16 +104,21 @@ def test_flat_pair_ab_times_both_searches_and_restores_the_compiled_one():
 
 def test_every_report_of_the_default_bag_has_the_fws_verdict_of_its_own_joint_state():
     """
-    ``feasible`` is this joint state's FWS verdict on every report, with the FWS at 10 Hz.
+    Every report's ``feasible`` is its own FWS's verdict, and its directional margins too.
 
-    ``fws_verdict_age.count`` replays the default bag with the default parameters (the FWS at
-    ``fws_rate_hz``, 10 Hz) and computes an FWS for every joint state: each report's
-    ``feasible`` must equal the FWP's verdict and that FWS's (three or more legs: by the
-    feasible region; two: by the one-dimensional LP). The latest FWS's verdict, which
-    two-leg reports carried before session 21, would differ on the trot of this bag.
+    With the FWS at 10 Hz: ``fws_verdict_age.count`` replays the default bag with the default
+    parameters (the FWS at ``fws_rate_hz``) and computes an FWS for every joint state (a full
+    recomputation): each report's ``feasible`` must equal the FWP's verdict and that FWS's
+    (three or more legs: by the feasible region; two: by the one-dimensional LP), and with
+    three or more legs its ``fws_directional_plus/minus`` that FWS's (by LPs every cycle). The
+    latest FWS's verdict, which two-leg reports carried before session 21, would differ on
+    the trot of this bag, and its directional margins, which the others carried before
+    session 22, are off by more than 10 N or N.m.
     """
     from fws_verdict_age import count
     out = count()
     assert {k: c['reports'] for k, c in out.items()} == {2: 1201, 3: 1800, 4: 2800}
     assert all(c['differs'] == 0 for c in out.values())
     assert out[2]['latest differs'] > 50
+    assert out[3]['directional differs'] == out[4]['directional differs'] == 0
+    assert out[4]['latest directional off'] > 10.0

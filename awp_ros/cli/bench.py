@@ -272,7 +272,10 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
     margins on the FWS (the ratio test), and the whole FWS with its margins
     (:func:`~awp_ros.evaluation.evaluator.compute_fws`) of the same postures; last the FWS's
     verdict of two of the legs (a diagonal pair) by its one-dimensional LP
-    (:func:`~awp_ros.wrench.fws_queries.two_leg_contains`, the wrench on their hyperplane).
+    (:func:`~awp_ros.wrench.fws_queries.two_leg_contains`, the wrench on their hyperplane),
+    and the FWS's 12 directional margins by LPs without its H-rep, every cycle's
+    (:func:`~awp_ros.wrench.fws_queries.directional_margins_of_legs`, the compiled simplex)
+    against HiGHS (:func:`~awp_ros.wrench.fws_queries.lp_directional_margins`).
     """
     from awp_ros.geometry import kernels
     from awp_ros.wrench import contact_wrench_cone as cwc
@@ -327,6 +330,9 @@ def kernel_ratios(evaluator: FeasibilityEvaluator, samples: int = 60, *, seed: i
         'FWS with margins': lambda c, i: compute_fws(*jobs[i]),
         'two-leg FWS verdict (LP)': lambda c, i: two_leg_contains(
             *two_legs[i], hull_tol=evaluator.hull_tol, feasibility_tol=evaluator.feasibility_tol),
+        'FWS directional margins (LPs)': lambda c, i: evaluator.directional_at(
+            list(results[i].legs.values()), jobs[i][2]) if kernels.ENABLED else
+        lp_directional_margins(jobs[i][0], [Q.vertices for Q in jobs[i][1]], jobs[i][2]),
     }
     times = {name: ([], []) for name in steps}
     enabled = kernels.ENABLED

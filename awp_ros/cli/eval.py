@@ -33,7 +33,10 @@ computed: no stance leg, or a singular leg with ``--no-fws``), ``support_region`
 (vertices counter-clockwise; a segment for two stance legs, a point for one, ``[]`` and
 ``"margin": null`` when empty); ``com_velocity`` [m/s] and ``capture_point`` [m, relative
 to the CoM] when ``base_twist`` is given (else ``null``), ``capture_point_margin`` [m]
-(its signed distance to the feasible region, ``null`` without it).
+(its signed distance to the feasible region, ``null`` without it);
+``fws_directional_per_cycle`` (``{"fx": {"plus": t, "minus": t}, ...}`` [N, N.m]: the FWS's
+directional margins by LPs without its H-rep, as the node reports them every cycle; with three
+or more stance legs, else ``null``; equal to ``fws.directional`` to about 1e-7).
 Non-finite numbers are written as ``null``.
 Exit status: 0 on success, 2 on bad input (one line on stderr naming it), 1 on an internal
 error.

@@ -30,9 +30,12 @@ whole-robot CoM; SI units). Stage names are the keys of ``timings_ms`` [ms]:
    capture point when the state has a ``base_twist`` (the CoM velocity, Pinocchio's
    ``vcom`` of the model stage); after :func:`~awp_ros.geometry.kernels.cycle_sets`, the
    three regions' kernels in one compiled call
-   (:func:`~awp_ros.geometry.kernels.cycle_regions`). The support and the feasible region
-   alone, the two that planners use, are also timed as ``com_regions`` (part of
-   ``regions``).
+   (:func:`~awp_ros.geometry.kernels.cycle_regions`); with three or more stance legs then
+   the FWS's directional margins by LPs on the feasible region's points
+   (``fws_directional_per_cycle``,
+   :func:`~awp_ros.wrench.fws_queries.directional_margins_of_legs`). The support and the
+   feasible region alone, the two that planners use, are also timed as ``com_regions``
+   (part of ``regions``).
 
 ``total`` is the wall time of the whole per-cycle evaluation, the five stages back to back:
 what ``evaluate(state, fws=False)`` costs. The feasible wrench set
@@ -58,7 +61,8 @@ import time
 import numpy as np
 
 from awp_ros.errors import AwpError, ConfigError, GeometryError, InputError
-from awp_ros.evaluation.result import AXES, FeasibilityResult, LegResult, WrenchSetResult
+from awp_ros.evaluation.result import directional_by_axis, FeasibilityResult, LegResult, \
+    WrenchSetResult
 from awp_ros.geometry import kernels
 from awp_ros.geometry.linalg import GRAM_CERTIFY, identity
 from awp_ros.geometry.margin import directional_margins, polytope_margin
@@ -81,7 +85,8 @@ from awp_ros.wrench.feasible_wrench_set import feasible_wrench_set_steps, minkow
 from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
 from awp_ros.wrench.friction_polytope import (friction_rows, FrictionPolytopes, inside_force,
                                               INSIDE_MARGIN)
-from awp_ros.wrench.fws_queries import two_leg_contains
+from awp_ros.wrench.fws_queries import directional_margins_of_legs, directional_of_points, \
+    two_leg_contains
 from awp_ros.wrench.wrench_polytope import (awp_zonotope, feasible_wrench_polytope, INTERIOR_TOL,
                                             zonotope_awp)
 
@@ -224,6 +229,11 @@ class FeasibilityEvaluator:
                                 feasibility_tol=tol) \
             if len(s.stance) == 2 and force_rows is not None else None
         t5 = clock()
+        # Three or more legs: the FWS's directional margins by LPs on the feasible region's
+        # points.
+        margins = directional_of_points(len(s.stance), sliced[3], w) \
+            if sliced is not None and len(s.stance) >= 3 else None
+        directional = None if margins is None else directional_by_axis(*margins)
         fwp_r.region = sliced and region_of_slice(fwp, sliced[2])
         if fwp_r.region is None:
             fwp_r.region = _region(fwp, w, 'FWP region', warnings)
@@ -241,7 +251,8 @@ class FeasibilityEvaluator:
                                    com_velocity=vcom, capture_point=capture,
                                    feasible_region_per_cycle=feasible,
                                    capture_margin_per_cycle=_point_margin(feasible, capture),
-                                   two_leg_fws_feasible=pair)
+                                   two_leg_fws_feasible=pair,
+                                   fws_directional_per_cycle=directional)
         if fws:
             self.add_fws(result)
         return result
@@ -285,7 +296,7 @@ class FeasibilityEvaluator:
         S, margin, plus, minus, times = part
         t0 = time.perf_counter()
         fws_r = WrenchSetResult.from_margin('fws', S, margin)
-        fws_r.directional = {axis: (float(a), float(b)) for axis, a, b in zip(AXES, plus, minus)}
+        fws_r.directional = directional_by_axis(plus, minus)
         # The same set as the FWS's slice: the per-cycle projection when there is one.
         fws_r.region = result.feasible_region_per_cycle
         if fws_r.region is None:
@@ -327,7 +338,7 @@ class FeasibilityEvaluator:
         if fws is not None:
             fws_r = margin(fws, 'feasible region')
             plus, minus = directional_margins(fws.polytope, w, feasibility_tol=tol)
-            fws_r.directional = {a: (float(x), float(y)) for a, x, y in zip(AXES, plus, minus)}
+            fws_r.directional = directional_by_axis(plus, minus)
         support = None if result.cwc is None else _region(result.cwc, w, 'support region',
                                                           warnings)
         feasible = None if result.feasible_region_per_cycle is None else \
@@ -341,7 +352,9 @@ class FeasibilityEvaluator:
                        feasible_region_per_cycle=feasible,
                        capture_margin_per_cycle=_point_margin(feasible, result.capture_point),
                        two_leg_fws_feasible=self.two_leg_verdict_at(list(result.legs.values()),
-                                                                    w))
+                                                                    w),
+                       fws_directional_per_cycle=None if result.fws_directional_per_cycle is None
+                       else self.directional_at(list(result.legs.values()), w))
 
     # -- stages ------------------------------------------------------------------------
 
@@ -365,6 +378,27 @@ class FeasibilityEvaluator:
                                 np.array([F.A for F in forces]), np.array([F.b for F in forces]),
                                 rows, wrench, hull_tol=self.hull_tol,
                                 feasibility_tol=self.feasibility_tol)
+
+    def directional_at(self, legs: Sequence[LegResult], wrench: np.ndarray
+                       ) -> dict[str, tuple[float, float]] | None:
+        """
+        Return the FWS's directional margins of evaluated legs at a wrench, without the FWS.
+
+        :func:`~awp_ros.wrench.fws_queries.directional_margins_of_legs` (exact LPs) on the
+        legs' positions, force polytopes and pyramids; ``wrench`` ``[f; tau]`` [N, N.m].
+        None unless there are three or more legs with full-dimensional force polytopes of
+        the same row count (the FWS's H-rep answers then).
+        """
+        forces = [leg.force_polytope for leg in legs]
+        if len(legs) < 3 or any(F.dimension != 3 or F.A.shape != forces[0].A.shape
+                                for F in forces):
+            return None
+        rows = self._friction_rows(np.array([leg.normal for leg in legs]),
+                                   np.array([leg.friction_coefficient for leg in legs]))
+        out = directional_margins_of_legs(np.array([leg.position for leg in legs]),
+                                          np.array([F.A for F in forces]),
+                                          np.array([F.b for F in forces]), rows, wrench)
+        return None if out is None else directional_by_axis(*out)
 
     def feasible_region_at(self, legs: Sequence[LegResult], wrench: np.ndarray
                            ) -> ComRegion | None:

@@ -9,7 +9,7 @@ measured orientation); forces [N], moments [N.m], positions [m]. See
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 import math
 
@@ -21,7 +21,7 @@ from awp_ros.wrench.com_region import ComRegion
 from awp_ros.wrench.contact_forces import MeasuredForces
 
 __all__ = ['AXES', 'FeasibilityResult', 'LegResult', 'REGIONS', 'WrenchSetResult',
-           'region_dict']
+           'directional_by_axis', 'region_dict']
 
 #: Names of the wrench axes, in the order of every 6-vector: force [N], moment [N.m].
 AXES = ('fx', 'fy', 'fz', 'mx', 'my', 'mz')
@@ -160,7 +160,11 @@ class FeasibilityResult:
     or from the FWS when that is not available (a singular leg); each None when not
     computed; ``capture_margin_per_cycle`` the capture point's margin to the per-cycle one;
     ``two_leg_fws_feasible``: with two stance legs, whether the wrench is in the FWS this
-    cycle, without the FWS (:attr:`fws_feasible_per_cycle`; None otherwise).
+    cycle, without the FWS (:attr:`fws_feasible_per_cycle`; None otherwise);
+    ``fws_directional_per_cycle``: with three or more stance legs, the FWS's directional
+    margins at ``wrench`` this cycle, without the FWS (axis -> (plus, minus), as
+    :attr:`WrenchSetResult.directional`;
+    :func:`~awp_ros.wrench.fws_queries.directional_margins_of_legs`), else None.
     ``com_velocity``: ``c'`` (3,) [m/s], world axes, when the state had a ``base_twist``
     (else None); ``capture_point``: the instantaneous capture point ``c' / omega_0``
     (``omega_0 = sqrt(g / h)``, ``h`` the CoM height above the stance feet's mean height)
@@ -188,6 +192,7 @@ class FeasibilityResult:
     feasible_region_per_cycle: ComRegion | None = None
     capture_margin_per_cycle: float = math.nan
     two_leg_fws_feasible: bool | None = None
+    fws_directional_per_cycle: dict[str, tuple[float, float]] | None = None
 
     @property
     def feasible_region(self) -> ComRegion | None:
@@ -288,8 +293,17 @@ class FeasibilityResult:
             'com_velocity': None if self.com_velocity is None else _floats(self.com_velocity),
             'capture_point': None if self.capture_point is None else _floats(self.capture_point),
             'capture_point_margin': _float(self.capture_point_margin),
+            'fws_directional_per_cycle': None if self.fws_directional_per_cycle is None else {
+                axis: {'plus': _float(p), 'minus': _float(m)}
+                for axis, (p, m) in self.fws_directional_per_cycle.items()},
             'timings_ms': dict(self.timings_ms),
         }
+
+
+def directional_by_axis(t_plus: Sequence[float], t_minus: Sequence[float]
+                        ) -> dict[str, tuple[float, float]]:
+    """Return directional margins ``(t_plus, t_minus)`` (6,) [N, N.m] as axis -> (plus, minus)."""
+    return {axis: (float(a), float(b)) for axis, a, b in zip(AXES, t_plus, t_minus)}
 
 
 def region_dict(region: ComRegion | None) -> dict | None:

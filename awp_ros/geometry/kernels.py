@@ -26,6 +26,7 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
   :func:`segment_slice`: the segment of a wrench set on a hyperplane (two stance legs);
 * :func:`leg_vertices`, :func:`projected_polygon` and :func:`feasible_region`: the feasible
   region by exact iterative projection of the contact-force LP (a small dense simplex);
+  :func:`directional_margins_lp`: the FWS's directional margins by the same simplex;
 * :func:`parallelepipeds`: the force parallelepipeds of 3-joint legs (inverse by cofactors);
 * :func:`batched_vertices`: the friction-bounded leg polytopes' vertices, every row triple of
   every leg by Cramer's rule in one pass;
@@ -81,7 +82,7 @@ except ImportError:  # pragma: no cover - exercised only on installs without num
 __all__ = [
     'ENABLED', 'MAX_BITS', 'batched_vertices', 'certified_solid_faces',
     'cone_double_description', 'cone_facets', 'cone_recheck', 'cross_products', 'cycle_regions',
-    'cycle_sets',
+    'cycle_sets', 'directional_margins_lp', 'directional_margins_of_points',
     'first_of_equal_rows', 'flat_cone_facets', 'flat_pair_facet_normals', 'feasible_region',
     'flat_zonotope_facets',
     'leg_vertices', 'lifted_rays', 'lifted_zonotope', 'pair_basis', 'parallelepipeds',
@@ -2037,8 +2038,13 @@ def _needed_rows(R):
 
 
 @_jit
-def _feasible_polygon(FA, Fb, R, P, w0, D, tol, max_lps):
-    """Return the vertices and status of :func:`feasible_region` (``W = w0 + D delta``)."""
+def _lifted_leg_points(FA, Fb, R, P):
+    """
+    Return the legs' lifted vertices ``[v; p_k x v]`` (6, n), their legs (n,) and a status.
+
+    Leg ``k``'s friction-bounded polytope ``{f : FA[k] f <= Fb[k], R[k] f <= 0}`` by its
+    vertices (:func:`leg_vertices`); status 1 (and no points) when a leg has none.
+    """
     K, m0 = FA.shape[0], FA.shape[1]
     m = m0 + R.shape[1]
     A = np.empty((m, 3))
@@ -2054,7 +2060,7 @@ def _feasible_polygon(FA, Fb, R, P, w0, D, tol, max_lps):
         mk = m0 + _needed_rows(R[k])
         V = _leg_vertices(A[:mk], b[:mk], 1e-9)
         if V.shape[0] == 0:
-            return np.empty((0, 2)), 1
+            return columns[:, :0].copy(), leg[:0].copy(), 1
         for v in range(V.shape[0]):
             x, y, z = V[v, 0], V[v, 1], V[v, 2]
             columns[0, n], columns[1, n], columns[2, n] = x, y, z
@@ -2063,7 +2069,19 @@ def _feasible_polygon(FA, Fb, R, P, w0, D, tol, max_lps):
             columns[5, n] = P[k, 0] * y - P[k, 1] * x
             leg[n] = k
             n += 1
-    V, status = _projected_polygon(columns[:, :n].copy(), leg[:n], K, w0, D, tol, max_lps)
+    return columns[:, :n].copy(), leg[:n].copy(), 0
+
+
+@_jit
+def _feasible_polygon(G, leg, K, points_status, w0, D, tol, max_lps):
+    """
+    Return the vertices and status of :func:`feasible_region` (``W = w0 + D delta``).
+
+    From the legs' lifted points ``G``, ``leg`` and their status (:func:`_lifted_leg_points`).
+    """
+    if points_status != 0:
+        return np.empty((0, 2)), 1
+    V, status = _projected_polygon(G, leg, K, w0, D, tol, max_lps)
     if status != 0:
         return V, status
     # Merge vertices closer than tol and vertices inside an edge (collinear neighbours).
@@ -2097,9 +2115,16 @@ def _feasible_polygon(FA, Fb, R, P, w0, D, tol, max_lps):
 @_jit
 def _feasible_region(FA, Fb, R, P, w, tol, max_lps):
     """See :func:`feasible_region`."""
+    G, leg, status = _lifted_leg_points(FA, Fb, R, P)
+    return _feasible_region_of_points(G, leg, FA.shape[0], status, w, tol, max_lps)
+
+
+@_jit
+def _feasible_region_of_points(G, leg, K, points_status, w, tol, max_lps):
+    """:func:`feasible_region` from the legs' lifted points (:func:`_lifted_leg_points`)."""
     D = np.zeros((6, 2))             # W(delta) = w + D delta: the moment of f at the offset
     D[3, 1], D[4, 0], D[5, 0], D[5, 1] = w[2], -w[2], w[1], -w[0]
-    V, status = _feasible_polygon(FA, Fb, R, P, w, D, tol, max_lps)
+    V, status = _feasible_polygon(G, leg, K, points_status, w, D, tol, max_lps)
     k = V.shape[0]
     A = np.zeros((k, 2))
     b = np.zeros(k)
@@ -2111,6 +2136,168 @@ def _feasible_region(FA, Fb, R, P, w, tol, max_lps):
         A[j, 0], A[j, 1] = ey / length, -ex / length
         b[j] = A[j, 0] * V[j, 0] + A[j, 1] * V[j, 1]
     return V, A, b, _signed_margin(V, b), status
+
+
+@_jit(inline=True)
+def _directional_phase1(G, leg, K, first, w, scale, axis, T, basis, kind, cost, d, row,
+                        flipped):
+    """
+    Write a feasible basis of ``[G | -e_axis] (lam, t) = w`` to ``T`` (phase 1); status.
+
+    One unit of weight per leg; the crash basis of :func:`_projected_polygon` (each leg's
+    point ``first[k]``, artificials on the wrench rows, ``flipped`` where their right-hand
+    side was negated), their sum minimised. ``axis < 0``: no ``t`` (its column zero and fixed).
+    Returns 0 feasible (the artificials then fixed at 0), 1 infeasible (the line misses S),
+    2 failed.
+    """
+    n, m = G.shape[1], T.shape[0]
+    N = T.shape[1] - 1
+    T[:, :] = 0.0
+    for i in range(6):
+        for j in range(n):
+            T[i, j] = G[i, j] / scale
+        T[i, N] = w[i] / scale
+    for j in range(n):
+        T[6 + leg[j], j] = 1.0
+    for k in range(K):
+        T[6 + k, N] = 1.0
+    kind[:] = 0
+    kind[n] = 2
+    if axis >= 0:
+        T[axis, n] = -1.0
+        kind[n] = 1
+    cost[:] = 0.0
+    for k in range(K):
+        r, c = 6 + k, first[k]
+        for i in range(6):                            # T[r, c] == 1: pivot on it
+            f = T[i, c]
+            if f != 0.0:
+                for j in range(N + 1):
+                    T[i, j] -= f * T[r, j]
+        basis[r] = c
+        kind[n + 1 + r] = 2
+    for i in range(6):
+        flipped[i] = T[i, N] < 0.0
+        if flipped[i]:
+            for j in range(N + 1):
+                T[i, j] = -T[i, j]
+        T[i, n + 1 + i] = 1.0
+        basis[i] = n + 1 + i
+        cost[n + 1 + i] = 1.0
+    if _simplex(T, basis, cost, kind, d, row, 4000, N) != 0:
+        return 2
+    infeasibility = 0.0
+    for i in range(m):
+        if basis[i] > n:
+            infeasibility += T[i, N]
+    if infeasibility > 1e-9:
+        return 1
+    for i in range(m):
+        kind[n + 1 + i] = 2
+    return 0
+
+
+@_jit
+def _directional_margins(G, leg, K, points_status, w):
+    """See :func:`directional_margins_lp`; from the legs' lifted points."""
+    out = np.full((6, 2), np.nan)
+    if points_status != 0:
+        return out, 0                                 # a leg without points: S is empty
+    n = G.shape[1]
+    m = 6 + K
+    N = n + 1 + m                                     # weights, t, artificials
+    scale = 1.0
+    for i in range(6):
+        scale = max(scale, abs(w[i]))
+        for j in range(n):
+            scale = max(scale, abs(G[i, j]))
+    T, Ta = np.empty((m, N + 1)), np.empty((m, N + 1))
+    basis, basis_a = np.empty(m, dtype=np.int64), np.empty(m, dtype=np.int64)
+    kind, kind_a = np.empty(N, dtype=np.int64), np.empty(N, dtype=np.int64)
+    cost = np.empty(N)
+    d = np.empty(N)
+    row = np.empty(N + 1)
+    flipped = np.empty(6, dtype=np.bool_)
+    first = np.full(K, -1, dtype=np.int64)           # each leg's point of largest f_z
+    for j in range(n):
+        if first[leg[j]] < 0 or G[2, j] > G[2, first[leg[j]]]:
+            first[leg[j]] = j
+    # One phase 1 of G lam = w for the six axes when w is in S: t's column is then that
+    # basis' image of -e_axis, +-(its wrench row's artificial column, kept up to date), and
+    # t = 0 is feasible. Else each axis' line has a phase 1 of its own.
+    inside = _directional_phase1(G, leg, K, first, w, scale, -1, T, basis, kind, cost, d, row,
+                                 flipped)
+    if inside == 2:
+        return np.full((6, 2), np.nan), 2
+    for axis in range(6):
+        if inside == 0:
+            Ta[:, :] = T
+            basis_a[:] = basis
+            kind_a[:] = kind
+            sign = 1.0 if flipped[axis] else -1.0
+            for i in range(m):
+                Ta[i, n] = sign * T[i, n + 1 + axis]
+            kind_a[n] = 1
+        else:
+            status = _directional_phase1(G, leg, K, first, w, scale, axis, Ta, basis_a,
+                                         kind_a, cost, d, row, flipped)
+            if status == 2:
+                return np.full((6, 2), np.nan), 2
+            if status == 1:                           # the line misses S: NaN
+                continue
+        for side in range(2):                         # max t, then min t, from that basis
+            cost[:] = 0.0
+            cost[n] = -1.0 if side == 0 else 1.0
+            if _simplex(Ta, basis_a, cost, kind_a, d, row, 4000, n + 1) != 0:
+                return np.full((6, 2), np.nan), 2
+            t = 0.0
+            for i in range(m):
+                if basis_a[i] == n:
+                    t = Ta[i, N]
+            out[axis, side] = t * scale if side == 0 else -t * scale
+    return out, 0
+
+
+def directional_margins_lp(force_A: np.ndarray, force_b: np.ndarray, rows: np.ndarray,
+                           positions: np.ndarray, wrench: np.ndarray
+                           ) -> tuple[np.ndarray, np.ndarray, int]:
+    r"""
+    Return the FWS's directional margins at ``wrench`` exactly, by LPs, without its H-rep.
+
+    .. math:: t^+_i = \max\{t : w + t e_i \in S\}, \qquad
+              t^-_i = -\min\{t : w + t e_i \in S\}, \qquad
+              S = \sum_k L_k\, \mathrm{conv}(V_k)
+
+    ``V_k`` the vertices of leg ``k``'s friction-bounded polytope ``{f : force_A[k] f <=
+    force_b[k], rows[k] f <= 0}`` (:func:`leg_vertices`), lifted to ``[v; p_k x v]`` at the
+    feet ``positions`` (K, 3) [m]. Per axis one LP in the legs' barycentric weights and
+    ``t``: a dense two-phase simplex (:func:`projected_polygon`'s, rows scaled by the
+    largest entry; phase 1 leaves at most 1e-9 of that scale), then ``max t`` and ``min t``
+    from the same basis. The conventions of
+    :func:`awp_ros.geometry.margin.directional_margins` (the interval need not contain 0
+    when ``w`` is outside; both NaN when the line misses S; for a flat S, ``t^+ = t_0``,
+    ``t^- = -t_0`` where the line crosses it).
+
+    :return: ``(t_plus (6,), t_minus (6,), status)`` [N x3, N.m x3]: status 0, or 2 when an
+        LP failed (unbounded or over its iteration limit; all NaN).
+    """
+    G, leg, status = _lifted_leg_points(
+        np.ascontiguousarray(force_A, dtype=float), np.ascontiguousarray(force_b, dtype=float),
+        np.ascontiguousarray(rows, dtype=float), np.ascontiguousarray(positions, dtype=float))
+    return directional_margins_of_points(G, leg, len(force_A), status, wrench)
+
+
+def directional_margins_of_points(G: np.ndarray, leg: np.ndarray, K: int, points_status: int,
+                                  wrench: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """
+    Return :func:`directional_margins_lp`'s margins from the legs' lifted points.
+
+    ``(G, leg, points_status)`` as :func:`cycle_regions` returns them (the feasible region's
+    points: the per-cycle evaluation projects and takes the margins from one enumeration).
+    """
+    out, status = _directional_margins(G, leg, int(K), int(points_status),
+                                       np.ascontiguousarray(wrench, dtype=float))
+    return out[:, 0].copy(), out[:, 1].copy(), int(status)
 
 
 def feasible_region(force_A: np.ndarray, force_b: np.ndarray, rows: np.ndarray,
@@ -3462,9 +3649,10 @@ def _cycle_regions(cwc_A, fwp_A, fwp_b, force_A, force_b, rows, P, w, tol, paral
                    max_lps):
     """See :func:`cycle_regions`."""
     support = _wrench_slice(cwc_A, np.zeros(cwc_A.shape[0]), w, tol, parallel, h_min)
-    feasible = _feasible_region(force_A, force_b, rows, P, w, tol, max_lps)
+    G, leg, status = _lifted_leg_points(force_A, force_b, rows, P)
+    feasible = _feasible_region_of_points(G, leg, force_A.shape[0], status, w, tol, max_lps)
     fwp = _wrench_slice(fwp_A, fwp_b, w, tol, parallel, h_min)
-    return support, feasible, fwp
+    return support, feasible, fwp, (G, leg, status)
 
 
 def cycle_regions(cwc_A: np.ndarray, fwp_A: np.ndarray, fwp_b: np.ndarray,
@@ -3477,7 +3665,9 @@ def cycle_regions(cwc_A: np.ndarray, fwp_A: np.ndarray, fwp_b: np.ndarray,
     :func:`wrench_slice` of the CWC (``cwc_A``, ``b = 0``), :func:`feasible_region` of the
     legs (``force_A`` (K, 6, 3), ``force_b``, the pyramid ``rows``, the feet ``positions``)
     and :func:`wrench_slice` of the FWP (``fwp_A``, ``fwp_b``), at ``wrench`` [N, N.m], in
-    this order: ``(support, feasible, fwp)``, each the kernel's own result.
+    this order, each the kernel's own result, and last the legs' lifted points the feasible
+    region was projected from, ``(G (6, n), leg (n,), status)``
+    (:func:`directional_margins_of_points` takes them): ``(support, feasible, fwp, points)``.
     """
     return _cycle_regions(np.ascontiguousarray(cwc_A, dtype=float),
                           np.ascontiguousarray(fwp_A, dtype=float),
@@ -3740,6 +3930,8 @@ def compile_all() -> None:
                           np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1e-9)
     cycle_regions(sets[4][1], sets[5][0], sets[5][1], sets[1][3], sets[1][4], rows3, P3,
                   np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1e-9, 1e-12, 0.0)
+    directional_margins_lp(box[None], np.ones((1, 6)), -box[None, :1], np.zeros((1, 3)),
+                           np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]))
     batched_vertices(box[None], np.ones((1, 6)), np.array([[0, 1, 2]]), np.ones(1), 1e-12)
     groups = {d: (rng.normal(size=(2, 2, d, 3)), rng.normal(size=(2, 2, 2, 2, 3)),
                   np.ones((2, 2, 2), dtype=bool), np.full(2, 2)) for d in (1, 2, 3)}

@@ -144,15 +144,17 @@ class PipelineParams:
         'STATUS_STALE_INPUT report [s]; 0 disables the check (contacts: '
         'contacts_timeout_s)')
     fws_rate_hz: float = _param(
-        10.0, 'rate of the FWS computation (H-rep, directional and Euclidean '
-        'margins) by joint-state stamps [Hz]; 0 = every cycle; a stance change '
+        10.0, 'rate of the FWS computation (H-rep, Euclidean margin and witness; the '
+        'directional margins with one or two stance legs: three or more have them every '
+        'cycle, by LPs) by joint-state stamps [Hz]; 0 = every cycle; a stance change '
         'forces it')
     fws_lag_s: float = _param(
         0.0, 'FWS off the joint-state loop [s]: an FWS due at stamp t is computed beside '
         'the loop (the node: in a worker process, or in steps between joint states with '
         'fws_worker false) and enters the reports from the '
         'first joint state stamped >= t + fws_lag_s, the same in the node and the '
-        'replay; after a stance change, until its FWS arrives, fws_* are NaN and '
+        'replay; after a stance change, until its FWS arrives, fws_* are NaN (but the '
+        'directional margins with three or more legs) and '
         "feasible is this cycle's verdict (fwp_feasible without one: one leg, a singular "
         'leg); 0 = in the loop, in the cycle it is due')
     marker_rate_hz: float = _param(

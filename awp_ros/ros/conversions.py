@@ -239,7 +239,9 @@ def report_bytes(header: Header, result: FeasibilityResult | None, *, compute_ti
     (:attr:`~awp_ros.evaluation.result.FeasibilityResult.fws_feasible_per_cycle`: the
     feasible region with three or more stance legs, an LP with two), else the latest FWS's;
     never true when the current FWP excludes the
-    wrench.
+    wrench. ``fws_directional_*`` are this cycle's with three or more stance legs
+    (:attr:`~awp_ros.evaluation.result.FeasibilityResult.fws_directional_per_cycle`), else
+    those of ``fws``.
 
     :param header: stamp of the answered joint state; frame_id the wrench frame.
     :param result: the evaluation, or None (not evaluated).
@@ -273,8 +275,11 @@ def report_bytes(header: Header, result: FeasibilityResult | None, *, compute_ti
                 *np.asarray(result.wrench, dtype=float).tolist())
         fws = result.fws if fws is None else fws
         sets = (_set_values(result.awp), _set_values(result.fwp), _set_values(fws))
-        if fws is not None and fws.directional is not None:
+        # This cycle's directional margins (three or more legs), else the FWS's.
+        d = result.fws_directional_per_cycle
+        if d is None and fws is not None:
             d = fws.directional
+        if d is not None:
             plus, minus = [float(d[a][0]) for a in AXES], [float(d[a][1]) for a in AXES]
         else:
             plus, minus = _NAN6_LIST, _NAN6_LIST

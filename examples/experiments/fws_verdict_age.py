@@ -1,5 +1,5 @@
 """
-Count the reports whose ``feasible`` is not the FWS verdict of their own joint state.
+Count the reports whose ``feasible`` (or FWS directional margins) are not their own FWS's.
 
 The measurement behind the README's "The FWS's verdict every cycle" paragraph.
 
@@ -15,7 +15,12 @@ It prints, by number of stance legs, the reports, those whose ``feasible`` diffe
 FWP's verdict and that FWS's (``differs``), and, among the reports without an FWS of their
 own, those whose ``feasible`` would differ with the verdict of the latest FWS instead (the one
 computed for an earlier joint state, which two-leg reports carried before session 21: it
-matters where the FWP's verdict is true) (``latest differs``).
+matters where the FWP's verdict is true) (``latest differs``). With three or more stance legs
+it also compares each report's ``fws_directional_plus/minus`` with that FWS's directional
+margins (``directional differs``: reports where one differs by more than ``rtol 1e-7, atol
+1e-5``, NaN equal to NaN), and gives how far the latest FWS's margins, which those reports
+carried before session 22, were from them (``latest directional off``: the largest difference
+[N or N.m] over the reports without an FWS of their own, where both are finite).
 """
 
 from __future__ import annotations
@@ -28,25 +33,42 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def count(max_states: int | None = None) -> dict:
-    """Return ``legs -> {'reports', 'differs', 'latest differs'}`` over the default bag."""
+    """
+    Return ``legs -> {'reports', 'differs', 'latest differs'}`` over the default bag.
+
+    With three or more legs also ``'directional differs'`` and ``'latest directional off'``.
+    """
+    import numpy as np
+
     from awp_ros.bags.replay import pipeline_cycles
+    from awp_ros.evaluation.result import AXES
     from awp_ros.robot.config import load_parameters
     from awp_ros.ros.pipeline import Pipeline
     params, base_dir = load_parameters('hyq')
     pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
-    out, latest = {}, None
+    out, latest, latest_margins = {}, None, None
     for seen, cycle in enumerate(pipeline_cycles(pipeline, REPO / 'config' / 'hyq_gait.mcap')):
         if max_states is not None and seen == max_states:
             break
         r = cycle.result
         own = r.fws if cycle.fws_computed else pipeline.evaluator.add_fws(replace(r)).fws
+        margins = np.array([own.directional[a] for a in AXES]).T       # (2, 6): plus, minus
         if cycle.fws_computed:
-            latest = own.feasible
+            latest, latest_margins = own.feasible, margins
         c = out.setdefault(len(r.stance), {'reports': 0, 'differs': 0, 'latest differs': 0})
         c['reports'] += 1
         c['differs'] += cycle.report.feasible != (r.fwp.feasible and own.feasible)
         stale = not cycle.fws_computed and r.fwp.feasible
         c['latest differs'] += stale and latest != own.feasible
+        if len(r.stance) >= 3:
+            rep = np.array([cycle.report.fws_directional_plus, cycle.report.fws_directional_minus])
+            close = np.isclose(rep, margins, rtol=1e-7, atol=1e-5, equal_nan=True).all()
+            c['directional differs'] = c.get('directional differs', 0) + (not close)
+            off = c.get('latest directional off', 0.0)
+            if not cycle.fws_computed and latest_margins is not None:
+                gap = np.abs(latest_margins - margins)
+                off = max(off, float(np.max(gap[np.isfinite(gap)], initial=0.0)))
+            c['latest directional off'] = off
     return out
 
 
@@ -60,6 +82,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f'{legs} stance legs: {c["reports"]} reports, feasible differs from the own FWS '
               f'verdict on {c["differs"]}, would differ with the latest FWS verdict on '
               f'{c["latest differs"]}')
+        if 'directional differs' in c:
+            off, differs = c['latest directional off'], c['directional differs']
+            print(f"  directional margins differ from the own FWS's on {differs}; the latest "
+                  f"FWS's were off by up to {off:.1f} [N or N.m]")
     return 0
 
 

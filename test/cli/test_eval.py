@@ -192,7 +192,8 @@ def test_bench_stream_qhull_ratios_and_kernels(capsys):
                                              'per-cycle evaluation, stream', 'FWS facet search',
                                              'friction-bounded polytopes', 'FWS leg faces',
                                              'FWS directional margins', 'FWS with margins',
-                                             'two-leg FWS verdict (LP)'}
+                                             'two-leg FWS verdict (LP)',
+                                             'FWS directional margins (LPs)'}
     assert all(r > 0 for r in summary['kernel_ratios'].values())
     times = bench_cli.stream_times(FeasibilityEvaluator('hyq'), 4, fws=False)
     assert set(times) == {'stream_total'} and times['stream_total'].shape == (4,)

@@ -118,8 +118,11 @@ def test_report_fields_equal_the_result(evaluator):
     assert rep.awp_dimension == 6 and rep.fws_affine_residual == r.fws.affine_residual
     assert rep.wrench.force.z == r.wrench[2] and rep.wrench.torque.y == r.wrench[4]
     assert rep.feasible == (r.fwp.feasible and r.fws.feasible) and rep.feasible
+    # This cycle's directional margins (four legs: every cycle, by LPs), those of the FWS.
     np.testing.assert_array_equal(rep.fws_directional_plus,
-                                  [r.fws.directional[a][0] for a in AXES])
+                                  [r.fws_directional_per_cycle[a][0] for a in AXES])
+    np.testing.assert_allclose(rep.fws_directional_minus,
+                               [r.fws.directional[a][1] for a in AXES], rtol=1e-7, atol=1e-5)
     assert rep.compute_time == 0.001
 
 
@@ -139,7 +142,9 @@ def _expected_report(header, r, fws, fws_stamp, status, message, compute_time):
         setattr(msg, f'{name}_dimension', 0 if s is None else max(s.dimension, 0))
         setattr(msg, f'{name}_feasible', s is not None and bool(s.feasible))
     msg.feasible = msg.fwp_feasible and msg.fws_feasible
-    d = None if fws is None else fws.directional
+    d = r.fws_directional_per_cycle              # this cycle's (3+ legs), else the FWS's
+    if d is None and fws is not None:
+        d = fws.directional
     msg.fws_directional_plus = [math.nan] * 6 if d is None else [d[a][0] for a in AXES]
     msg.fws_directional_minus = [math.nan] * 6 if d is None else [d[a][1] for a in AXES]
     if fws is not None:

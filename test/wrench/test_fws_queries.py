@@ -165,3 +165,72 @@ def test_two_leg_verdict_agrees_with_the_fws_and_an_lp_on_the_definition(compile
             assert verdict is not None and verdict == bool(fws) == bool(lp)
             seen[verdict] += 1
     assert seen[True] > 50 and seen[False] > 50
+
+
+# -- Three or more stance legs: the directional margins every cycle --------------------------
+
+def test_directional_margins_every_cycle_agree_with_the_hrep_and_highs():
+    """
+    The compiled LPs of every cycle, the FWS's H-rep and HiGHS give the same margins.
+
+    Random HyQ postures with three and four stance legs; at the state's own wrench and at
+    wrenches inside the FWS (random force distributions), beyond its boundary and far
+    outside (lines that miss it: NaN). The per-cycle margins of ``evaluate`` are those of
+    ``directional_at`` at the state's wrench.
+    """
+    from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+    from awp_ros.evaluation.result import AXES
+    from awp_ros.geometry import kernels
+    if not kernels.ENABLED:
+        pytest.skip('the compiled kernels are off')
+    evaluator = FeasibilityEvaluator('hyq')
+    rng = np.random.default_rng(77)
+    stances = [('lf_foot', 'rf_foot', 'lh_foot', 'rh_foot'), ('lf_foot', 'rf_foot', 'rh_foot'),
+               ('rf_foot', 'lh_foot', 'rh_foot'), ('lf_foot', 'rf_foot', 'lh_foot')]
+    seen = {'inside': 0, 'outside': 0, 'missed': 0}
+    for i in range(8):
+        state = evaluator.standing_state(stance=stances[i % len(stances)])
+        for name in state.joint_positions:
+            state.joint_positions[name] += rng.uniform(-0.15, 0.15)
+        result = evaluator.evaluate(state)
+        legs = list(result.legs.values())
+        np.testing.assert_array_equal(                          # NaN where NaN
+            list(result.fws_directional_per_cycle.values()),
+            list(evaluator.directional_at(legs, result.wrench).values()))
+        P = np.array([leg.position for leg in legs])
+        V = [leg.friction_polytope.vertices for leg in legs]
+        wrenches = [result.wrench]
+        for scale in (0.3, 0.9, 1.2, 3.0):
+            x = np.zeros(6)
+            for p, v in zip(P, V):
+                f = v.T @ rng.dirichlet(np.ones(len(v)))
+                x += np.concatenate([f, np.cross(p, f)])
+            wrenches.append(result.wrench + 2.0 * scale * (x - result.wrench))
+        wrenches.append(result.wrench * 40.0)
+        for w in wrenches:
+            got = evaluator.directional_at(legs, w)
+            plus = np.array([got[a][0] for a in AXES])
+            minus = np.array([got[a][1] for a in AXES])
+            h_plus, h_minus = directional_margins(result.fws.polytope, w)
+            _, l_plus, l_minus = lp_directional_margins(P, V, w)
+            for mine, ref in ((plus, h_plus), (minus, h_minus), (plus, l_plus),
+                              (minus, l_minus)):
+                np.testing.assert_allclose(mine, ref, rtol=1e-7, atol=1e-5)
+            other = evaluator.with_wrench(result, w)     # a planner's wrench: the same LPs
+            np.testing.assert_array_equal(list(other.fws_directional_per_cycle.values()),
+                                          list(got.values()))
+            np.testing.assert_allclose(list(other.fws.directional.values()),
+                                       list(got.values()), rtol=1e-7, atol=1e-5)
+            for a, b in zip(plus, minus):                     # each axis' line
+                seen['missed' if np.isnan(a) else 'inside' if min(a, b) >= 0 else 'outside'] += 1
+    assert min(seen.values()) >= 20, seen
+
+
+def test_directional_margins_every_cycle_only_with_three_or_more_legs():
+    """Two stance legs: no per-cycle margins (the FWS's, at fws_rate_hz, answer)."""
+    from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+    evaluator = FeasibilityEvaluator('hyq')
+    result = evaluator.evaluate(evaluator.standing_state(stance=('lf_foot', 'rh_foot')),
+                                fws=False)
+    assert result.fws_directional_per_cycle is None
+    assert evaluator.directional_at(list(result.legs.values()), result.wrench) is None
