@@ -24,7 +24,9 @@ rate, the FWS apart, possibly at a lower rate):
 The table gives the median, 90th percentile and maximum [ms] of each; the last line is one
 JSON object with the medians: ``total_ms`` (the per-cycle evaluation without the FWS),
 ``fws_margin_ms`` (friction polytopes + FWS H-rep + Euclidean margin: the exact FWS margin),
-``fws_query_lp_ms`` (friction polytopes + the LP queries),
+``fws_query_lp_ms`` (friction polytopes + the LP queries), ``fws_directional_lp_ms`` (the
+FWS's directional margins that every cycle gives with three or more stance legs, by LPs on
+the feasible region's points, timed apart from ``total``),
 and ``<stage>_ms`` for every stage, the FWS's margin step alone as ``fws_margin_step_ms``;
 ``regions_ms`` (``com_regions`` of pass 1: the two CoM regions inside the per-cycle
 evaluation, the feasible region by exact projection,
@@ -96,7 +98,8 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
     :param baseline_samples: states (the first ones) on which the iterative-projection
         baseline of the regions is timed.
     :return: stage name -> array (samples,) [ms] (:data:`~awp_ros.evaluation.evaluator.STAGES`,
-        ``total`` and, with ``fws``, :data:`FWS_STAGES`), plus ``feasible`` (bool array:
+        ``total``, ``fws_directional_lp`` and, with ``fws``, :data:`FWS_STAGES`), plus
+        ``feasible`` (bool array:
         ``result.feasible``, ``w`` in the FWS: the FWS's verdict when computed, else that of
         the per-cycle feasible region with three or more legs, else the FWP's).
     """
@@ -105,7 +108,8 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
     names = list(base.joint_positions)
     q0 = np.array([base.joint_positions[n] for n in names])
     postures = q0 + rng.uniform(-spread, spread, size=(warmup + samples, q0.size))
-    keys = list(STAGES) + ['com_regions', 'total'] + (list(FWS_STAGES) if fws else [])
+    keys = list(STAGES) + ['com_regions', 'total', 'fws_directional_lp'] + \
+        (list(FWS_STAGES) if fws else [])
     times = {name: np.zeros(samples) for name in keys}
     if fws:
         times['regions_baseline'] = np.zeros(min(samples, max(baseline_samples, 0)))
@@ -116,7 +120,7 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
         base.joint_positions = dict(zip(names, q.tolist()))
         result = evaluator.evaluate(base, fws=False)
         if i >= warmup:
-            for name in STAGES + ('com_regions', 'total'):
+            for name in STAGES + ('com_regions', 'total', 'fws_directional_lp'):
                 times[name][i - warmup] = result.timings_ms[name]
             feasible[i - warmup] = result.feasible
     # Pass 2, the same states re-evaluated (untimed), then the LP queries (as a per-cycle

@@ -12,7 +12,8 @@ as ``awp_node`` does, with the robot's parameters and the ``-p`` overrides (as `
 ``fws_amortised_ms``) (the first pass warms up, the last is timed) and prints, per joint state,
 the mean and median wall time of :meth:`~awp_ros.ros.pipeline.Pipeline.on_joint_state` [ms], how
 often the contact wrench cone reused its last facets (``cwc_reused``, ``cwc_searched``), the
-mean of each evaluation stage (:data:`awp_ros.evaluation.evaluator.STAGES`) and of the FWS
+mean of each evaluation stage (:data:`awp_ros.evaluation.evaluator.STAGES`), of the FWS's
+per-cycle directional margins (``fws_directional_lp``, three or more stance legs) and of the FWS
 amortised over all joint states, the rest (report and input conversion), and the means by number
 of stance legs, with the median time of the FWS computed for a joint state of that many stance
 legs (``fws_ms_by_stance_legs``). Its last line is one JSON object. Output messages other than
@@ -58,7 +59,7 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
     msgs = [(m.topic, deserialize_message(m.data, types[m.topic]))
             for m in read_bag(bag, topics=list(types))]
     for _ in range(max(1, repeat)):
-        wall, legs, stages, fws = [], [], {s: [] for s in STAGES}, []
+        wall, legs, stages, fws = [], [], {s: [] for s in STAGES + ('fws_directional_lp',)}, []
         reuse0 = reuse_counts()
         for topic, msg in msgs:
             if topic == '/contacts':
@@ -69,8 +70,8 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
             wall.append(1e3 * (time.perf_counter() - t0))
             r = cycle.result
             legs.append(-1 if r is None else len(r.stance))
-            for s in STAGES:
-                stages[s].append(0.0 if r is None else r.timings_ms[s])
+            for s in stages:
+                stages[s].append(0.0 if r is None else r.timings_ms.get(s, 0.0))
             fws.append(sum(r.timings_ms.get(k, 0.0) for k in ('fws', 'fws_directional',
                                                               'fws_margin'))
                        if r is not None and cycle.fws_computed else 0.0)
@@ -84,7 +85,7 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
     for s, v in stages.items():
         out[f'{s}_ms'] = float(np.mean(v))
     out['rest_ms'] = out['mean_ms'] - out['fws_amortised_ms'] - sum(
-        out[f'{s}_ms'] for s in STAGES)
+        out[f'{s}_ms'] for s in stages)
     out['mean_ms_by_stance_legs'] = {int(k): float(wall_a[legs_a == k].mean())
                                      for k in np.unique(legs_a)}
     fws_a = np.array(fws)

@@ -30,15 +30,17 @@ whole-robot CoM; SI units). Stage names are the keys of ``timings_ms`` [ms]:
    capture point when the state has a ``base_twist`` (the CoM velocity, Pinocchio's
    ``vcom`` of the model stage); after :func:`~awp_ros.geometry.kernels.cycle_sets`, the
    three regions' kernels in one compiled call
-   (:func:`~awp_ros.geometry.kernels.cycle_regions`); with three or more stance legs then
-   the FWS's directional margins by LPs on the feasible region's points
-   (``fws_directional_per_cycle``,
-   :func:`~awp_ros.wrench.fws_queries.directional_margins_of_legs`). The support and the
-   feasible region alone, the two that planners use, are also timed as ``com_regions``
-   (part of ``regions``).
+   (:func:`~awp_ros.geometry.kernels.cycle_regions`). The support and the feasible region
+   alone, the two that planners use, are also timed as ``com_regions`` (part of
+   ``regions``).
+
+With three or more stance legs each evaluation then gives the FWS's directional margins, by
+LPs on the feasible region's points (``fws_directional_per_cycle``,
+:func:`~awp_ros.wrench.fws_queries.directional_margins_of_legs`), timed apart as
+``fws_directional_lp`` (0 otherwise): an FWS query, outside ``total`` as the FWS's own steps.
 
 ``total`` is the wall time of the whole per-cycle evaluation, the five stages back to back:
-what ``evaluate(state, fws=False)`` costs. The feasible wrench set
+what ``evaluate(state, fws=False)`` costs, but for ``fws_directional_lp``. The feasible wrench set
 :math:`\sum_k L_k \mathcal F_{\mu,k}` is timed apart, as it may run at a lower rate
 (:meth:`FeasibilityEvaluator.add_fws`): ``fws`` (its exact H-rep, including the
 friction-bounded polytopes when not yet computed), ``fws_directional`` (how
@@ -229,21 +231,22 @@ class FeasibilityEvaluator:
                                 feasibility_tol=tol) \
             if len(s.stance) == 2 and force_rows is not None else None
         t5 = clock()
-        # Three or more legs: the FWS's directional margins by LPs on the feasible region's
-        # points.
-        margins = directional_of_points(len(s.stance), sliced[3], w) \
-            if sliced is not None and len(s.stance) >= 3 else None
-        directional = None if margins is None else directional_by_axis(*margins)
         fwp_r.region = sliced and region_of_slice(fwp, sliced[2])
         if fwp_r.region is None:
             fwp_r.region = _region(fwp, w, 'FWP region', warnings)
         capture = _capture_point(vcom, p, self._gravity)
         fwp_r.capture_point_margin = _point_margin(fwp_r.region, capture)
         t6 = clock()
+        # Three or more legs: the FWS's directional margins by LPs on the feasible region's
+        # points, timed apart (an FWS query, as the FWS's own steps).
+        margins = directional_of_points(len(s.stance), sliced[3], w) \
+            if sliced is not None and len(s.stance) >= 3 else None
+        directional = None if margins is None else directional_by_axis(*margins)
         timings = {'validate': 1e3 * (t1 - t0), 'model': 1e3 * (t2 - t1),
                    'sets': 1e3 * (t3 - t2), 'margins': 1e3 * (t4 - t3),
                    'regions': 1e3 * (t6 - t4),
-                   'com_regions': 1e3 * (t5 - t4), 'total': 1e3 * (t6 - t0)}
+                   'com_regions': 1e3 * (t5 - t4), 'total': 1e3 * (t6 - t0),
+                   'fws_directional_lp': 1e3 * (clock() - t6)}
         result = FeasibilityResult(cfg.robot_name, s.stance, kin.mass, kin.com, w, legs,
                                    awp_r, fwp_r, None, warnings, timings,
                                    'quasi_static' if s.a is None else 'measured',

@@ -1883,6 +1883,43 @@ def _basis_bound(T, basis, kind, leg, n, K, u, a0, a1, gap):
     return total
 
 
+@_jit(inline=True)
+def _crash_basis(T, basis, kind, cost, first, K, a0, flipped):
+    """
+    Write phase 1's crash basis of a tableau in the legs' barycentric weights.
+
+    Rows 0-5 are the wrench, row ``6 + k`` leg k's unit of weight, the artificials' columns
+    start at ``a0`` (one per row). Each leg's row starts with its point ``first[k]`` basic
+    (weight 1, eliminated from the wrench rows; its artificial fixed at 0, ``kind`` 2), or
+    with its artificial when it has none (``first[k] < 0``); the wrench rows with their
+    artificials, after negating those whose right-hand side is negative (``flipped``). The
+    artificials' sum is added to ``cost``.
+    """
+    N = T.shape[1] - 1
+    for k in range(K):
+        r, c = 6 + k, first[k]
+        if c < 0:
+            T[r, a0 + r] = 1.0
+            basis[r] = a0 + r
+            cost[a0 + r] = 1.0
+            continue
+        for i in range(6):                           # T[r, c] == 1: pivot on it
+            f = T[i, c]
+            if f != 0.0:
+                for j in range(N + 1):
+                    T[i, j] -= f * T[r, j]
+        basis[r] = c
+        kind[a0 + r] = 2
+    for i in range(6):
+        flipped[i] = T[i, N] < 0.0
+        if flipped[i]:
+            for j in range(N + 1):
+                T[i, j] = -T[i, j]
+        T[i, a0 + i] = 1.0
+        basis[i] = a0 + i
+        cost[a0 + i] = 1.0
+
+
 @_jit
 def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
     """See :func:`projected_polygon`."""
@@ -1920,27 +1957,7 @@ def _projected_polygon(G, leg, K, w0, D, tol, max_lps):
     for j in range(n):
         if first[leg[j]] < 0 or T[2, j] > T[2, first[leg[j]]]:
             first[leg[j]] = j
-    for k in range(K):
-        r, c = 6 + k, first[k]
-        if c < 0:
-            T[r, n + 2 + r] = 1.0
-            basis[r] = n + 2 + r
-            cost[n + 2 + r] = 1.0
-            continue
-        for i in range(6):                           # T[r, c] == 1: pivot on it
-            f = T[i, c]
-            if f != 0.0:
-                for j in range(N + 1):
-                    T[i, j] -= f * T[r, j]
-        basis[r] = c
-        kind[n + 2 + r] = 2
-    for i in range(6):
-        if T[i, N] < 0.0:
-            for j in range(N + 1):
-                T[i, j] = -T[i, j]
-        T[i, n + 2 + i] = 1.0
-        basis[i] = n + 2 + i
-        cost[n + 2 + i] = 1.0
+    _crash_basis(T, basis, kind, cost, first, K, n + 2, np.empty(6, dtype=np.bool_))
     status = _simplex(T, basis, cost, kind, d, row, 4000, N)
     vertices = np.empty((max_lps + 3, 2))
     if status != 0:
@@ -2144,9 +2161,9 @@ def _directional_phase1(G, leg, K, first, w, scale, axis, T, basis, kind, cost, 
     """
     Write a feasible basis of ``[G | -e_axis] (lam, t) = w`` to ``T`` (phase 1); status.
 
-    One unit of weight per leg; the crash basis of :func:`_projected_polygon` (each leg's
-    point ``first[k]``, artificials on the wrench rows, ``flipped`` where their right-hand
-    side was negated), their sum minimised. ``axis < 0``: no ``t`` (its column zero and fixed).
+    One unit of weight per leg; from :func:`_crash_basis` (each leg's point ``first[k]``,
+    artificials on the wrench rows, ``flipped`` where their right-hand side was negated),
+    their sum minimised. ``axis < 0``: no ``t`` (its column zero and fixed).
     Returns 0 feasible (the artificials then fixed at 0), 1 infeasible (the line misses S),
     2 failed.
     """
@@ -2167,23 +2184,7 @@ def _directional_phase1(G, leg, K, first, w, scale, axis, T, basis, kind, cost, 
         T[axis, n] = -1.0
         kind[n] = 1
     cost[:] = 0.0
-    for k in range(K):
-        r, c = 6 + k, first[k]
-        for i in range(6):                            # T[r, c] == 1: pivot on it
-            f = T[i, c]
-            if f != 0.0:
-                for j in range(N + 1):
-                    T[i, j] -= f * T[r, j]
-        basis[r] = c
-        kind[n + 1 + r] = 2
-    for i in range(6):
-        flipped[i] = T[i, N] < 0.0
-        if flipped[i]:
-            for j in range(N + 1):
-                T[i, j] = -T[i, j]
-        T[i, n + 1 + i] = 1.0
-        basis[i] = n + 1 + i
-        cost[n + 1 + i] = 1.0
+    _crash_basis(T, basis, kind, cost, first, K, n + 1, flipped)
     if _simplex(T, basis, cost, kind, d, row, 4000, N) != 0:
         return 2
     infeasibility = 0.0

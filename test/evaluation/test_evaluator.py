@@ -530,7 +530,8 @@ def test_add_fws_matches_evaluate_with_fws(hyq):
     assert {'fws', 'fws_directional', 'fws_margin'} <= set(b.timings_ms)
     # 'total' is the per-cycle evaluation: its stages and glue, never the FWS stages.
     assert b.timings_ms['total'] == per_cycle['total']
-    assert set(per_cycle) == set(STAGES) | {'com_regions', 'total'}   # com_regions: in regions
+    # com_regions: in regions; fws_directional_lp: the FWS's per-cycle LPs, outside total.
+    assert set(per_cycle) == set(STAGES) | {'com_regions', 'total', 'fws_directional_lp'}
 
 
 def test_timings_are_measured_durations_within_the_call(hyq):
@@ -547,6 +548,7 @@ def test_timings_are_measured_durations_within_the_call(hyq):
         assert max(tm[s] for s in STAGES) <= tm['total'] <= wall
         assert sum(tm[s] for s in STAGES) <= wall
         assert tm['model'] > 0.0 and tm['sets'] > 0.0 and tm['regions'] > 0.0
+        assert 0.0 < tm['fws_directional_lp'] and tm['total'] + tm['fws_directional_lp'] <= wall
         t0 = time.perf_counter()
         hyq.add_fws(r)
         wall = 1e3 * (time.perf_counter() - t0)
