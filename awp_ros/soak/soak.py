@@ -212,6 +212,9 @@ def run_soak(rate_hz: float, duration_s: float, *, robot: str = 'hyq',
         probe.close()
         stop_node(proc)
         Path(stamps_file.name).unlink(missing_ok=True)
+    if slow is not None and slow.calibration is not None:
+        slow.confirm_fast()                # the reference again, the stealers and node gone
+        result.slow_machine = slow.summary()
     n = min(count[0], stamps.size)
     got, rcv, st = stamps[:n], recv[:n], status[:n]
     result.reports = int(count[0])
