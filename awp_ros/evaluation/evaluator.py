@@ -239,14 +239,16 @@ class FeasibilityEvaluator:
         t6 = clock()
         # Three or more legs: the FWS's directional margins by LPs on the feasible region's
         # points, timed apart (an FWS query, as the FWS's own steps).
-        margins = directional_of_points(len(s.stance), sliced[3], w) \
-            if sliced is not None and len(s.stance) >= 3 else None
-        directional = None if margins is None else directional_by_axis(*margins)
+        directional, lp_ms = None, 0.0
+        if sliced is not None and len(s.stance) >= 3:
+            margins = directional_of_points(len(s.stance), sliced[3], w)
+            directional = None if margins is None else directional_by_axis(*margins)
+            lp_ms = 1e3 * (clock() - t6)
         timings = {'validate': 1e3 * (t1 - t0), 'model': 1e3 * (t2 - t1),
                    'sets': 1e3 * (t3 - t2), 'margins': 1e3 * (t4 - t3),
                    'regions': 1e3 * (t6 - t4),
                    'com_regions': 1e3 * (t5 - t4), 'total': 1e3 * (t6 - t0),
-                   'fws_directional_lp': 1e3 * (clock() - t6)}
+                   'fws_directional_lp': lp_ms}
         result = FeasibilityResult(cfg.robot_name, s.stance, kin.mass, kin.com, w, legs,
                                    awp_r, fwp_r, None, warnings, timings,
                                    'quasi_static' if s.a is None else 'measured',

@@ -16,8 +16,9 @@ per-cycle questions (is ``w`` feasible, how much extra force or moment along eac
 about a millisecond for HyQ's four legs, while the exact H-rep and Euclidean margin
 (:mod:`awp_ros.wrench.feasible_wrench_set`) take several.
 
-The same LPs by the compiled dense simplex of the feasible region take about 0.02 ms
-(:func:`directional_margins_of_legs`): the FWS's directional margins every cycle.
+The same LPs by the compiled dense simplex of the feasible region take about 0.04 ms
+(:func:`directional_margins_of_legs`, README "Speed"): the FWS's directional margins every
+cycle.
 
 With two stance legs membership is a one-dimensional LP (:func:`two_leg_contains`): a force
 along the line through both feet is the same wrench from either foot, so the force
@@ -110,8 +111,8 @@ def directional_margins_of_legs(positions: np.ndarray, force_A: np.ndarray,
 
     The LPs of :func:`lp_directional_margins` in the barycentric weights of each leg's
     friction-bounded polytope's vertices, solved by the compiled dense simplex of the
-    feasible region (:func:`awp_ros.geometry.kernels.directional_margins_lp`: about 0.02 ms
-    for four HyQ legs, against about 1 ms for HiGHS), the conventions of
+    feasible region (:func:`awp_ros.geometry.kernels.directional_margins_lp`: about 0.04 ms
+    for four HyQ legs, against about 1.2 ms for HiGHS), the conventions of
     :func:`awp_ros.geometry.margin.directional_margins`.
 
     :param positions: (K, 3) the feet relative to the CoM [m], world-aligned axes.
