@@ -373,15 +373,10 @@ class FeasibilityEvaluator:
         ``[f; tau]`` [N, N.m]. None unless there are two legs with full-dimensional force
         polytopes of the same row count (a singular leg's is flat): the FWS decides then.
         """
-        forces = [leg.force_polytope for leg in legs]
-        if len(legs) != 2 or any(F.dimension != 3 for F in forces) or \
-                forces[0].A.shape != forces[1].A.shape:
+        stacked = self._stacked_legs(legs) if len(legs) == 2 else None
+        if stacked is None:
             return None
-        rows = self._friction_rows(np.array([leg.normal for leg in legs]),
-                                   np.array([leg.friction_coefficient for leg in legs]))
-        return two_leg_contains(np.array([leg.position for leg in legs]),
-                                np.array([F.A for F in forces]), np.array([F.b for F in forces]),
-                                rows, wrench, hull_tol=self.hull_tol,
+        return two_leg_contains(*stacked, wrench, hull_tol=self.hull_tol,
                                 feasibility_tol=self.feasibility_tol)
 
     def directional_at(self, legs: Sequence[LegResult], wrench: np.ndarray
@@ -394,16 +389,27 @@ class FeasibilityEvaluator:
         None unless there are three or more legs with full-dimensional force polytopes of
         the same row count (the FWS's H-rep answers then).
         """
-        forces = [leg.force_polytope for leg in legs]
-        if len(legs) < 3 or any(F.dimension != 3 or F.A.shape != forces[0].A.shape
-                                for F in forces):
-            return None
-        rows = self._friction_rows(np.array([leg.normal for leg in legs]),
-                                   np.array([leg.friction_coefficient for leg in legs]))
-        out = directional_margins_of_legs(np.array([leg.position for leg in legs]),
-                                          np.array([F.A for F in forces]),
-                                          np.array([F.b for F in forces]), rows, wrench)
+        stacked = self._stacked_legs(legs) if len(legs) >= 3 else None
+        out = None if stacked is None else directional_margins_of_legs(*stacked, wrench)
         return None if out is None else directional_by_axis(*out)
+
+    def _stacked_legs(self, legs: Sequence[LegResult]) -> tuple | None:
+        """
+        Return the legs' ``(positions, force_A, force_b, pyramid_rows)`` stacked, or None.
+
+        None when a force polytope is not full-dimensional (a singular leg's is flat) or the
+        row counts differ: the arrays of the per-cycle queries on evaluated legs.
+        """
+        forces = [leg.force_polytope for leg in legs]
+        if any(F.dimension != 3 or F.A.shape != forces[0].A.shape for F in forces):
+            return None
+        return (np.array([leg.position for leg in legs]), np.array([F.A for F in forces]),
+                np.array([F.b for F in forces]), self._pyramid_rows(legs))
+
+    def _pyramid_rows(self, legs: Sequence[LegResult]) -> np.ndarray:
+        """Return the friction pyramids' rows of evaluated legs (:meth:`_friction_rows`)."""
+        return self._friction_rows(np.array([leg.normal for leg in legs]),
+                                   np.array([leg.friction_coefficient for leg in legs]))
 
     def feasible_region_at(self, legs: Sequence[LegResult], wrench: np.ndarray
                            ) -> ComRegion | None:
@@ -417,11 +423,9 @@ class FeasibilityEvaluator:
         """
         if not legs:
             return None
-        rows = self._friction_rows(np.array([leg.normal for leg in legs]),
-                                   np.array([leg.friction_coefficient for leg in legs]))
         return feasible_region(np.array([leg.position for leg in legs]),
-                               [leg.force_polytope for leg in legs], rows, wrench[:3],
-                               wrench[3:])
+                               [leg.force_polytope for leg in legs], self._pyramid_rows(legs),
+                               wrench[:3], wrench[3:])
 
     def _sets(self, s: ResolvedState, kin, rows: np.ndarray, warnings: list[str]) -> tuple:
         """
