@@ -59,7 +59,8 @@ def test_slice_search_variants_compile_and_the_exact_ones_give_the_kernel_rows()
         assert npos >= 0
         return np.vstack([out[0][:npos], out[1][:nneg]])
 
-    for replacements, exact in ((SV._PREFILTER, True), (SV._BATCHED, True), (SV._PRUNED, False),
+    for replacements, exact in ((SV._PREFILTER, True), (SV._BATCHED, True), (SV._LANES, True),
+                                (SV._PRUNED, False),
                                 (SV._NO_SURVIVORS + SV._NO_FORMS, False)):
         fn = SV.variant(replacements)
         for call in calls:
@@ -100,6 +101,34 @@ def test_flat_pair_ab_times_both_searches_and_restores_the_compiled_one():
     assert set(out) == {'numpy', 'compiled'}
     assert all(len(v) == len(flat_pair_ab.PAIRS) and min(v) > 0.0 for v in out.values())
     assert mf._flat_pair is compiled
+
+
+def test_fws_depth_bounds_are_lower_bounds_of_the_facets_they_would_skip():
+    """
+    ``fws_depth_bounds``' forces give the wrench, its bounds stay below the H-rep's slacks.
+
+    Its forces sum to the wrench with every leg at least ``r`` deep in its polytope; bound (2)
+    of a slice never exceeds the slack of an H-rep row whose normal lies in the slice (the
+    exact H-rep, an independent computation), and a node's bound (a plane of the slice) is never
+    below its slice's.
+    """
+    import fws_depth_bounds as DB
+    from awp_ros.geometry.face_lattice import polytope_faces
+    from awp_ros.wrench.feasible_wrench_set import _leg_inputs, lift_matrices
+    positions, frictions, w = DB.four_leg_jobs(1000)[1]
+    faces = [polytope_faces(V, H, rank_tol=1e-7, plane_tol=1e-9)
+             for V, H in zip(*_leg_inputs(frictions))]
+    forces, r = DB.interior_forces(np.asarray(positions), faces, w)
+    lifted = np.einsum('kij,kj->i', lift_matrices(positions), forces)
+    np.testing.assert_allclose(lifted, w, atol=1e-6 * np.abs(w).max())
+    for F, f in zip(faces, forces):
+        assert np.min(F.facet_offsets - F.facet_normals @ f) >= r - 1e-6 * abs(r)
+    out = DB.measure(positions, frictions, w)
+    assert out['r'] == pytest.approx(r) and 0.0 < r < out['d_star']
+    assert -np.inf < out['worst'] <= 1e-9 * out['d_star']
+    for item in DB.slice_bounds(np.asarray(positions), faces, forces):
+        nodes = item['nodes'][np.isfinite(item['nodes'])]
+        assert nodes.size and np.all(nodes >= item['bound'] * (1 - 1e-9) - 1e-9)
 
 
 def test_every_report_of_the_default_bag_has_the_fws_verdict_of_its_own_joint_state():

@@ -1,5 +1,5 @@
 """
-Time the parts of the FWS's (2, 1, 1, 1) slice search, and three variants that were slower.
+Time the parts of the FWS's (2, 1, 1, 1) slice search, and four variants that were slower.
 
 ::
 
@@ -26,6 +26,10 @@ replaced (each replaced text must be found exactly once, else the script stops):
 - ``batched survivors``: the candidates that pass the node legs are kept, and processed in one
   batch per facet class of A (their normals, then legs A and D's checks, in loops over the
   batch) instead of one at a time.
+- ``lanes``: every candidate of a node at once: their normals ``x_d = *(P ^ r3_d)`` in one
+  loop over the candidates, then each check of the four legs in one loop over them (the node
+  legs' at the slack bound ``|s| |P| |r3|``, legs A and D's at ``|x|``, the candidate leg's
+  checks stored per candidate), no node-leg forms and no candidate-by-candidate tests.
 
 It prints the mean rows and choices per call, whether each variant's rows equal the kernel's
 (bit for bit, or how many differ), the nodes the pruning keeps, and each variant's mean time per
@@ -221,6 +225,60 @@ _BATCHED = [
 """)]
 
 
+_LANES = [
+    (_ARRAYS, _ARRAYS + textwrap.indent(textwrap.dedent("""\
+        X, NX, NB = np.zeros((4, mP)), np.zeros(mP), np.zeros(mP)
+        ST, tT = np.zeros((kD, cD, 4, mP)), np.zeros((kD, cD, mP))
+        F, H, fl, hl = np.empty(mP), np.empty(mP), np.empty(mP), np.empty(mP)
+        """), '    ')),
+    ('                _slice_checks(n, dD, Dc[D, e], Dm[D, e], cone_tol, SD[e], tD[e])\n',
+     '                _slice_checks(n, dD, Dc[D, e], Dm[D, e], cone_tol, SD[e], tD[e])\n'
+     + textwrap.indent(textwrap.dedent("""\
+        for s in range(kD):
+            for j in range(cD):
+                for i in range(4):
+                    ST[s, j, i, e] = SD[e, s, j, i]
+                tT[s, j, e] = tD[e, s, j]
+        """), ' ' * 16)),
+    (('                    # A check S of a node leg at x(r3)',
+      '                            nneg += 1\n'),
+     textwrap.indent(textwrap.dedent("""\
+        nR = (nD[D] + 3) // 4 * 4
+        for d in range(nR):
+            d123 = R[1, d] * P[5] - R[2, d] * P[4] + R[3, d] * P[3]
+            d023 = R[0, d] * P[5] - R[2, d] * P[2] + R[3, d] * P[1]
+            d013 = R[0, d] * P[4] - R[1, d] * P[2] + R[3, d] * P[0]
+            d012 = R[0, d] * P[3] - R[1, d] * P[1] + R[2, d] * P[0]
+            X[0, d], X[1, d], X[2, d], X[3, d] = -d123, d023, -d013, d012
+            NX[d] = np.sqrt(d123 * d123 + d023 * d023 + d013 * d013 + d012 * d012)
+            NB[d] = nP * Rn[d]
+        _lane_leg(SB[b], tB[b], kB, cB, X, NB, nR, F, H, mn, mx, fl, hl, True)
+        if not pair:
+            _lane_leg(SC[c], tC[c], kC, cC, X, NB, nR, F, H, mn, mx, fl, hl, False)
+        _lane_leg(SA, tA, kA, cA, X, NX, nR, F, H, mn, mx, fl, hl, False)
+        _lane_candidates(ST, tT, kD, cD, X, NX, nR, F, H, mn, mx, fl, hl)
+        for d in range(nD[D]):
+            pos = F[d] >= 0.0
+            neg = H[d] <= 0.0
+            if not (pos or neg) or not NX[d] > normal_tol * NB[d]:
+                continue
+            for i in range(4):
+                x[i] = X[i, d]
+            if pos:
+                if npos == out_pos.shape[0]:
+                    return -1, -1, choices
+                _slice_normal(x, n, pA, U, out_pos, npos, a)
+                npos += 1
+            if neg:
+                if nneg == out_neg.shape[0]:
+                    return -1, -1, choices
+                for i in range(4):
+                    x[i] = -x[i]
+                _slice_normal(x, n, pA, U, out_neg, nneg, a)
+                nneg += 1
+        """), ' ' * 20))]
+
+
 @numba.njit(inline='always')
 def _node_checks(G, g, k, c, e1, e2, leg, sid, fu, fv, fs, fslot, nf, slot_leg):
     """Append a leg's checks of its present slots in the node plane's basis (e1, e2)."""
@@ -386,6 +444,69 @@ def _slot_bounds_of(S, t, idx, k, c, X, NX, n, f, h, mn, mx):
                 h[i] = mx[i] if mx[i] < h[i] else h[i]
 
 
+@numba.njit(inline='always', fastmath=K._FASTMATH)
+def _lane_fold(mn, mx, n, F, H, first):
+    """Fold one slot's values into a leg's ``F`` (max over slots) and ``H`` (min), per lane."""
+    for d in range(n):
+        F[d] = mn[d] if first or mn[d] > F[d] else F[d]
+        H[d] = mx[d] if first or mx[d] < H[d] else H[d]
+
+
+@numba.njit(inline='always', fastmath=K._FASTMATH)
+def _lane_leg(S, t, k, c, X, scale, n, F, H, mn, mx, fl, hl, first_leg):
+    """
+    Fold one leg's slot tests at every lane's ``x = X[:, d]`` into ``F`` (min) and ``H`` (max).
+
+    The leg's check (s, j) is the same at every lane: ``S[s, j] . x`` within ``t[s, j]
+    scale[d]``; missing slots (``t = -inf``) are skipped, a leg without a slot fails both signs.
+    """
+    seen = False
+    for s in range(k):
+        if c > 0 and not t[s, 0] > -np.inf:
+            continue
+        for j in range(c):
+            g0, g1, g2, g3, tj = S[s, j, 0], S[s, j, 1], S[s, j, 2], S[s, j, 3], t[s, j]
+            for d in range(n):
+                v = g0 * X[0, d] + g1 * X[1, d] + g2 * X[2, d] + g3 * X[3, d]
+                w = tj * scale[d]
+                mn[d] = v + w if j == 0 or v + w < mn[d] else mn[d]
+                mx[d] = v - w if j == 0 or v - w > mx[d] else mx[d]
+        if c == 0:
+            mn[:n] = np.inf
+            mx[:n] = -np.inf
+        _lane_fold(mn, mx, n, fl, hl, not seen)
+        seen = True
+    if not seen:
+        fl[:n] = -np.inf
+        hl[:n] = np.inf
+    for d in range(n):
+        F[d] = fl[d] if first_leg or fl[d] < F[d] else F[d]
+        H[d] = hl[d] if first_leg or hl[d] > H[d] else H[d]
+
+
+@numba.njit(inline='always', fastmath=K._FASTMATH)
+def _lane_candidates(ST, tT, k, c, X, NX, n, F, H, mn, mx, fl, hl):
+    """:func:`_lane_leg` for the candidate leg, its checks ``ST[s, j, :, d]`` per lane."""
+    for s in range(k):
+        for j in range(c):
+            S, t = ST[s, j], tT[s, j]
+            for d in range(n):
+                v = S[0, d] * X[0, d] + S[1, d] * X[1, d] + S[2, d] * X[2, d] + S[3, d] * X[3, d]
+                w = t[d] * NX[d]
+                mn[d] = v + w if j == 0 or v + w < mn[d] else mn[d]
+                mx[d] = v - w if j == 0 or v - w > mx[d] else mx[d]
+        if c == 0:
+            mn[:n] = np.inf
+            mx[:n] = -np.inf
+        _lane_fold(mn, mx, n, fl, hl, s == 0)
+    if k == 0:
+        fl[:n] = -np.inf
+        hl[:n] = np.inf
+    for d in range(n):
+        F[d] = fl[d] if fl[d] < F[d] else F[d]
+        H[d] = hl[d] if hl[d] > H[d] else H[d]
+
+
 def variant(replacements: list[tuple]):
     """
     Compile ``_slice_search`` with ``replacements`` applied to its source (each found once).
@@ -404,7 +525,8 @@ def variant(replacements: list[tuple]):
     namespace = dict(vars(K))
     namespace.update(_node_feasible=_node_feasible, _wedge_form=_wedge_form,
                      _wedge_bounds=_wedge_bounds, _node_forms32=_node_forms32,
-                     _leg_bounds_at=_leg_bounds_at, _slot_bounds_of=_slot_bounds_of)
+                     _leg_bounds_at=_leg_bounds_at, _slot_bounds_of=_slot_bounds_of,
+                     _lane_leg=_lane_leg, _lane_candidates=_lane_candidates)
     exec(textwrap.dedent(source), namespace)
     return numba.njit(fastmath=K._FASTMATH)(namespace['_slice_search'])
 
@@ -451,7 +573,7 @@ def main(argv: list[str] | None = None) -> int:
                 'no slot bounds': variant(_NO_SURVIVORS + _NO_SLOT_BOUNDS),
                 'no forms': variant(_NO_SURVIVORS + _NO_FORMS),
                 'node pruned': variant(_PRUNED), 'float32 prefilter': variant(_PREFILTER),
-                'batched survivors': variant(_BATCHED)}
+                'batched survivors': variant(_BATCHED), 'lanes': variant(_LANES)}
 
     def rows(fn, call):
         npos, nneg, count = fn(*call, *out)
@@ -460,7 +582,7 @@ def main(argv: list[str] | None = None) -> int:
     reference = [rows(K._slice_search, call) for call in calls]
     print(f'{len(calls)} (2, 1, 1, 1) searches: mean {np.mean([len(r) for r, _ in reference]):.0f}'
           f' rows, {np.mean([n for _, n in reference]):.0f} face choices')
-    for name in ('copy', 'node pruned', 'float32 prefilter', 'batched survivors'):
+    for name in ('copy', 'node pruned', 'float32 prefilter', 'batched survivors', 'lanes'):
         got = [rows(variants[name], call) for call in calls]
         same = sum(g.shape == r.shape and np.array_equal(g, r)
                    for (g, _), (r, _) in zip(got, reference))
