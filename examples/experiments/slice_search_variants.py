@@ -241,7 +241,7 @@ _LANES = [
                 tT[s, j, e] = tD[e, s, j]
         """), ' ' * 16)),
     (('                    # A check S of a node leg at x(r3)',
-      '                            nneg += 1\n'),
+      '                        pd, nd = _slot_signs(SD[d], tD[d], kD, cD, x, nx)\n'),
      textwrap.indent(textwrap.dedent("""\
         nR = (nD[D] + 3) // 4 * 4
         for d in range(nR):
@@ -264,18 +264,7 @@ _LANES = [
                 continue
             for i in range(4):
                 x[i] = X[i, d]
-            if pos:
-                if npos == out_pos.shape[0]:
-                    return -1, -1, choices
-                _slice_normal(x, n, pA, U, out_pos, npos, a)
-                npos += 1
-            if neg:
-                if nneg == out_neg.shape[0]:
-                    return -1, -1, choices
-                for i in range(4):
-                    x[i] = -x[i]
-                _slice_normal(x, n, pA, U, out_neg, nneg, a)
-                nneg += 1
+            pd = nd = True              # every leg's test is in F and H: the kernel's output
         """), ' ' * 20))]
 
 
