@@ -45,10 +45,12 @@ import numpy as np
 from scipy.linalg import eigh
 from scipy.optimize import linprog
 
+from awp_ros.wrench.wrench_polytope import lift_matrices
+
 
 def _skew(v: np.ndarray) -> np.ndarray:
-    """Return ``[v]x``, the matrix of ``u -> v x u``."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+    """Return ``[v]x``, the matrix of ``u -> v x u``: the moment rows of the lift ``L(v)``."""
+    return lift_matrices(np.reshape(v, (1, 3)))[0, 3:]
 
 
 def interior_forces(positions: np.ndarray, faces: list, w: np.ndarray) -> tuple:
@@ -67,8 +69,7 @@ def interior_forces(positions: np.ndarray, faces: list, w: np.ndarray) -> tuple:
             rows.append(row)
             rhs.append(o)
     eq = np.zeros((6, 3 * K + 1))
-    for k in range(K):
-        eq[:3, 3 * k:3 * k + 3], eq[3:, 3 * k:3 * k + 3] = np.eye(3), _skew(positions[k])
+    eq[:, :-1] = np.hstack(lift_matrices(positions))            # sum_k L_k f_k = w
     cost = np.zeros(3 * K + 1)
     cost[-1] = -1.0
     lp = linprog(cost, A_ub=np.array(rows), b_ub=rhs, A_eq=eq, b_eq=w,
@@ -131,7 +132,7 @@ def measure(positions: np.ndarray, frictions: list, w: np.ndarray) -> dict:
     """Return ``r``, ``d*``, the slices and nodes bound (2) skips, and its worst violation."""
     from awp_ros.evaluation.evaluator import compute_fws
     from awp_ros.geometry.face_lattice import polytope_faces
-    from awp_ros.wrench.feasible_wrench_set import _leg_inputs, lift_matrices
+    from awp_ros.wrench.feasible_wrench_set import _leg_inputs
     P = np.asarray(positions, dtype=float)
     faces = [polytope_faces(V, H, rank_tol=1e-7, plane_tol=1e-9)     # as the FWS's H-rep
              for V, H in zip(*_leg_inputs(frictions))]
