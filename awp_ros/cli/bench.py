@@ -16,6 +16,13 @@ rate, the FWS apart, possibly at a lower rate):
    ``fws_directional``: the 12 directional margins on it, ``fws_margin``: the Euclidean
    margin on it), and ``fws_query_lp``: membership and the 12 directional margins by
    :func:`~awp_ros.wrench.fws_queries.lp_directional_margins` (exact LPs, no H-rep);
+   ``fws_outside``: the FWS's signed margin of a wrench outside it, as every cycle gives it with
+   three or more stance legs (the evaluation's ``fws_distance``: Wolfe's algorithm on the legs'
+   points, no H-rep), for the state's wrench moved :data:`OUTSIDE_N` beyond the FWS along
+   +fz, and ``fws_outside_ldp`` the same margin by the least-distance program on the FWS's
+   H-rep (given the H-rep); JSON ``fws_outside_vs_hrep`` (``fws_margin_ms`` over
+   ``fws_outside_ms``: what the margin costs per cycle against through the H-rep) and
+   ``fws_outside_max_error`` (the largest difference of the two margins [N, N.m]);
    ``regions_baseline``: the feasible and the support region by Bretl & Lall's iterative
    projection with LPs
    (:func:`~awp_ros.geometry.iterative_projection.iterative_projection`, as jet-leg does;
@@ -65,7 +72,7 @@ from awp_ros.estimation.motion import MotionEstimator
 from awp_ros.evaluation.evaluator import compute_fws, FeasibilityEvaluator, STAGES
 from awp_ros.geometry.face_lattice import polytope_faces
 from awp_ros.geometry.iterative_projection import iterative_projection, torque_halfspaces
-from awp_ros.geometry.margin import directional_margins
+from awp_ros.geometry.margin import directional_margins, polytope_margin
 from awp_ros.geometry.minkowski_facets import facet_normals
 from awp_ros.robot.state import resolve_state
 from awp_ros.runtime import tune_process
@@ -77,7 +84,10 @@ from awp_ros.wrench.fws_queries import lp_directional_margins, two_leg_contains
 __all__ = ['main', 'run_benchmark']
 
 PROG = 'awp_bench'
-FWS_STAGES = ('fws_friction', 'fws', 'fws_directional', 'fws_margin', 'fws_query_lp')
+FWS_STAGES = ('fws_friction', 'fws', 'fws_directional', 'fws_margin', 'fws_query_lp',
+              'fws_outside', 'fws_outside_ldp')
+#: How far beyond the FWS's boundary along +fz the outside wrench of pass 2 is [N].
+OUTSIDE_N = 50.0
 
 
 def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 0,
@@ -114,6 +124,7 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
     if fws:
         times['regions_baseline'] = np.zeros(min(samples, max(baseline_samples, 0)))
     feasible = np.zeros(samples, dtype=bool)
+    errors = np.full(samples, np.nan)
     # Pass 1, the per-cycle evaluation. Results are dropped as in the node's loop (keeping
     # them all would grow the heap and put page faults in the timings).
     for i, q in enumerate(postures):
@@ -134,18 +145,47 @@ def run_benchmark(evaluator: FeasibilityEvaluator, samples: int, *, seed: int = 
         friction_ms = 1e3 * (time.perf_counter() - t0)
         lp_ms = _lp_query(result)
         evaluator.add_fws(result)
+        outside = _outside_times(evaluator, base, result)
         if i >= warmup:
             for name in FWS_STAGES[1:4]:
                 times[name][i - warmup] = result.timings_ms[name]
             times['fws_friction'][i - warmup] = friction_ms
             times['fws_query_lp'][i - warmup] = lp_ms
+            times['fws_outside'][i - warmup], times['fws_outside_ldp'][i - warmup], \
+                errors[i - warmup] = outside
             if i - warmup < times['regions_baseline'].size:
                 times['regions_baseline'][i - warmup] = _regions_baseline(evaluator, base,
                                                                           result)
             feasible[i - warmup] = result.feasible
     times['estimation'] = estimation_times(evaluator, postures, seed=seed)[warmup:]
     times['feasible'] = feasible
+    if fws:
+        times['outside_error'] = errors
     return times
+
+
+def _outside_times(evaluator: FeasibilityEvaluator, state, result) -> tuple[float, float, float]:
+    """
+    Return the FWS's margin of a wrench outside it: per cycle and on the H-rep, and their gap.
+
+    The wrench is ``result``'s moved :data:`OUTSIDE_N` beyond the FWS along +fz (past its
+    directional margin ``fz`` plus: outside, the FWS being convex). ``(per-cycle ms``, the
+    evaluation's ``fws_distance`` (Wolfe's algorithm on the legs' points),
+    ``least-distance program on the H-rep ms``, ``|difference of the margins|`` [N, N.m]``)``;
+    NaN without the directional margin or with fewer than three stance legs.
+    """
+    plus = result.fws.directional['fz'][0] if result.fws.directional else np.nan
+    if not np.isfinite(plus) or len(result.stance) < 3:
+        return np.nan, np.nan, np.nan
+    w = result.wrench + (plus + OUTSIDE_N) * np.eye(6)[2]
+    per_cycle = evaluator.evaluate(state, fws=False, wrench=w)
+    t0 = time.perf_counter()
+    reference = polytope_margin(result.fws.polytope, w, feasibility_tol=evaluator.feasibility_tol,
+                                hull_tol=evaluator.hull_tol)
+    ldp_ms = 1e3 * (time.perf_counter() - t0)
+    m = per_cycle.fws_margin_per_cycle
+    error = np.nan if m is None else abs(m.margin - reference.margin)
+    return per_cycle.timings_ms['fws_distance'], ldp_ms, error
 
 
 def _lp_query(result) -> float:
@@ -505,7 +545,9 @@ def main(argv: list[str] | None = None) -> int:
         sys.stderr.write(f'{PROG}: error: {" ".join(str(exc).split())}\n')
         return 2
     feasible = times.pop('feasible')
-    median = {s: float(np.median(t)) for s, t in times.items()}
+    outside_error = times.pop('outside_error', None)
+    median = {s: float(np.nanmedian(t)) if np.isfinite(t).any() else np.nan
+              for s, t in times.items()}
     if not args.json_only:
         out = [f'{PROG}: robot {evaluator.config.robot_name}, {args.samples} postures, '
                f'seed {args.seed}, spread {args.spread} rad, '
@@ -537,6 +579,15 @@ def main(argv: list[str] | None = None) -> int:
         if not args.json_only:     # a table row: the ratio of the two medians
             sys.stdout.write(f'{"regions_speedup":<20}{summary["regions_speedup"]:>12.1f}  '
                              '(x: iterative projection / per-cycle exact, CoM regions)\n')
+    if outside_error is not None and np.isfinite(outside_error).any():
+        summary['fws_outside_max_error'] = float(np.nanmax(outside_error))
+        summary['fws_outside_vs_hrep'] = round(summary['fws_margin_ms'] /
+                                               median['fws_outside'], 1)
+        if not args.json_only:
+            sys.stdout.write(f'{"fws_outside_vs_hrep":<20}{summary["fws_outside_vs_hrep"]:>12.1f}'
+                             '  (x: FWS H-rep + margin / per-cycle distance, wrenches '
+                             f'{OUTSIDE_N:g} N outside; margins differ by at most '
+                             f'{summary["fws_outside_max_error"]:.2e})\n')
     ratios = [('total_vs_qhull', 'awp_qhull', median['total'], 'per-cycle total'),
               ('fws_vs_qhull', 'fws_qhull', summary.get('fws_per_cycle_ms'), 'FWS per cycle')]
     for key, baseline, ours, what in ratios:

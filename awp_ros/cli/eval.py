@@ -36,7 +36,12 @@ to the CoM] when ``base_twist`` is given (else ``null``), ``capture_point_margin
 (its signed distance to the feasible region, ``null`` without it);
 ``fws_directional_per_cycle`` (``{"fx": {"plus": t, "minus": t}, ...}`` [N, N.m]: the FWS's
 directional margins by LPs without its H-rep, as the node reports them every cycle; with three
-or more stance legs, else ``null``; equal to ``fws.directional`` to about 1e-7).
+or more stance legs, else ``null``; equal to ``fws.directional`` to about 1e-7);
+``fws_margin_per_cycle`` (``{"margin": m, "margin_in_hull": m, "normal": [...], "dimension": 6,
+"affine_residual": 0, "feasible": false}``: the FWS's signed margin and witness from its
+nearest point, without its H-rep, as the node reports them every cycle when the wrench is
+outside the FWS with three or more stance legs; else ``null``; equal to ``fws``'s to about
+1e-7).
 Non-finite numbers are written as ``null``.
 Exit status: 0 on success, 2 on bad input (one line on stderr naming it), 1 on an internal
 error.

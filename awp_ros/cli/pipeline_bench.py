@@ -13,7 +13,8 @@ as ``awp_node`` does, with the robot's parameters and the ``-p`` overrides (as `
 the mean and median wall time of :meth:`~awp_ros.ros.pipeline.Pipeline.on_joint_state` [ms], how
 often the contact wrench cone reused its last facets (``cwc_reused``, ``cwc_searched``), the
 mean of each evaluation stage (:data:`awp_ros.evaluation.evaluator.STAGES`), of the FWS's
-per-cycle directional margins (``fws_directional_lp``, three or more stance legs) and of the FWS
+per-cycle directional margins (``fws_directional_lp``, three or more stance legs), of its per-cycle
+distance when the wrench is outside it (``fws_distance``, three or more legs), and of the FWS
 amortised over all joint states, the rest (report and input conversion), and the means by number
 of stance legs, with the median time of the FWS computed for a joint state of that many stance
 legs (``fws_ms_by_stance_legs``). Its last line is one JSON object. Output messages other than
@@ -59,7 +60,8 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
     msgs = [(m.topic, deserialize_message(m.data, types[m.topic]))
             for m in read_bag(bag, topics=list(types))]
     for _ in range(max(1, repeat)):
-        wall, legs, stages, fws = [], [], {s: [] for s in STAGES + ('fws_directional_lp',)}, []
+        wall, legs, fws = [], [], []
+        stages = {s: [] for s in STAGES + ('fws_directional_lp', 'fws_distance')}
         reuse0 = reuse_counts()
         for topic, msg in msgs:
             if topic == '/contacts':

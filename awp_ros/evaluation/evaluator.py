@@ -38,6 +38,10 @@ With three or more stance legs each evaluation then gives the FWS's directional 
 LPs on the feasible region's points (``fws_directional_per_cycle``,
 :func:`~awp_ros.wrench.fws_queries.directional_margins_of_legs`), timed apart as
 ``fws_directional_lp`` (0 otherwise): an FWS query, outside ``total`` as the FWS's own steps.
+When that region puts the CoM outside (the wrench is not in the FWS), the FWS's signed margin
+and witness too, by the nearest point of the FWS to the wrench (``fws_margin_per_cycle``,
+:func:`~awp_ros.wrench.fws_queries.outside_margin_of_points`, Wolfe's algorithm on the same
+points), timed as ``fws_distance`` (0 otherwise).
 
 ``total`` is the wall time of the whole per-cycle evaluation, the five stages back to back:
 what ``evaluate(state, fws=False)`` costs, but for ``fws_directional_lp``. The feasible wrench set
@@ -67,7 +71,7 @@ from awp_ros.evaluation.result import directional_by_axis, FeasibilityResult, Le
     WrenchSetResult
 from awp_ros.geometry import kernels
 from awp_ros.geometry.linalg import GRAM_CERTIFY, identity
-from awp_ros.geometry.margin import directional_margins, polytope_margin
+from awp_ros.geometry.margin import directional_margins, polytope_margin, SetMargin
 from awp_ros.geometry.minkowski_facets import STEP_CHOICES
 from awp_ros.geometry.polytope import Polytope
 from awp_ros.geometry.steps import run_steps, timed_steps
@@ -88,7 +92,7 @@ from awp_ros.wrench.force_polytope import force_polytope, parallelepipeds
 from awp_ros.wrench.friction_polytope import (friction_rows, FrictionPolytopes, inside_force,
                                               INSIDE_MARGIN)
 from awp_ros.wrench.fws_queries import directional_margins_of_legs, directional_of_points, \
-    two_leg_contains
+    lifted_points, outside_margin_of_points, two_leg_contains
 from awp_ros.wrench.wrench_polytope import (awp_zonotope, feasible_wrench_polytope, INTERIOR_TOL,
                                             zonotope_awp)
 
@@ -239,16 +243,23 @@ class FeasibilityEvaluator:
         t6 = clock()
         # Three or more legs: the FWS's directional margins by LPs on the feasible region's
         # points, timed apart (an FWS query, as the FWS's own steps).
-        directional, lp_ms = None, 0.0
+        directional, lp_ms, outside, distance_ms = None, 0.0, None, 0.0
         if sliced is not None and len(s.stance) >= 3:
             margins = directional_of_points(len(s.stance), sliced[3], w)
             directional = None if margins is None else directional_by_axis(*margins)
-            lp_ms = 1e3 * (clock() - t6)
+            t7 = clock()
+            lp_ms = 1e3 * (t7 - t6)
+            # Outside the FWS (the CoM outside its slice): its margin, by the nearest point.
+            if feasible is not None and not feasible.contains_origin():
+                outside, problem = outside_margin_of_points(len(s.stance), sliced[3], w, tol)
+                if problem:
+                    warnings.append(problem)
+                distance_ms = 1e3 * (clock() - t7)
         timings = {'validate': 1e3 * (t1 - t0), 'model': 1e3 * (t2 - t1),
                    'sets': 1e3 * (t3 - t2), 'margins': 1e3 * (t4 - t3),
                    'regions': 1e3 * (t6 - t4),
                    'com_regions': 1e3 * (t5 - t4), 'total': 1e3 * (t6 - t0),
-                   'fws_directional_lp': lp_ms}
+                   'fws_directional_lp': lp_ms, 'fws_distance': distance_ms}
         result = FeasibilityResult(cfg.robot_name, s.stance, kin.mass, kin.com, w, legs,
                                    awp_r, fwp_r, None, warnings, timings,
                                    'quasi_static' if s.a is None else 'measured',
@@ -257,7 +268,8 @@ class FeasibilityEvaluator:
                                    feasible_region_per_cycle=feasible,
                                    capture_margin_per_cycle=_point_margin(feasible, capture),
                                    two_leg_fws_feasible=pair,
-                                   fws_directional_per_cycle=directional)
+                                   fws_directional_per_cycle=directional,
+                                   fws_margin_per_cycle=outside)
         if fws:
             self.add_fws(result)
         return result
@@ -351,6 +363,8 @@ class FeasibilityEvaluator:
         if fws_r is not None and feasible is not None:
             fws_r.region = feasible
             fws_r.capture_point_margin = _point_margin(feasible, result.capture_point)
+        outside = self.outside_margin_at(list(result.legs.values()), w, feasible, warnings) \
+            if result.fws_directional_per_cycle is not None else None
         return replace(result, wrench=w, awp=margin(result.awp),
                        fwp=margin(result.fwp, 'FWP region'), fws=fws_r,
                        support_region=support, warnings=warnings,
@@ -359,7 +373,8 @@ class FeasibilityEvaluator:
                        two_leg_fws_feasible=self.two_leg_verdict_at(list(result.legs.values()),
                                                                     w),
                        fws_directional_per_cycle=None if result.fws_directional_per_cycle is None
-                       else self.directional_at(list(result.legs.values()), w))
+                       else self.directional_at(list(result.legs.values()), w),
+                       fws_margin_per_cycle=outside)
 
     # -- stages ------------------------------------------------------------------------
 
@@ -410,6 +425,27 @@ class FeasibilityEvaluator:
         """Return the friction pyramids' rows of evaluated legs (:meth:`_friction_rows`)."""
         return self._friction_rows(np.array([leg.normal for leg in legs]),
                                    np.array([leg.friction_coefficient for leg in legs]))
+
+    def outside_margin_at(self, legs: Sequence[LegResult], wrench: np.ndarray,
+                          region: ComRegion | None, warnings: list[str]) -> SetMargin | None:
+        """
+        Return the FWS's signed margin of a wrench outside it, for evaluated legs, or None.
+
+        :func:`~awp_ros.wrench.fws_queries.outside_margin_of_points` on the legs' friction
+        polytopes' lifted vertices, when ``region`` (the feasible region at ``wrench``,
+        :meth:`feasible_region_at`) leaves out the CoM with three or more legs; None
+        otherwise (inside: the FWS's H-rep gives the margin). A failure is appended to
+        ``warnings``.
+        """
+        if region is None or len(legs) < 3 or region.contains_origin():
+            return None
+        points = lifted_points(np.array([leg.position for leg in legs]),
+                               [leg.friction_polytope.vertices for leg in legs])
+        outside, problem = outside_margin_of_points(len(legs), points, wrench,
+                                                    self.feasibility_tol)
+        if problem:
+            warnings.append(problem)
+        return outside
 
     def feasible_region_at(self, legs: Sequence[LegResult], wrench: np.ndarray
                            ) -> ComRegion | None:

@@ -21,7 +21,7 @@ from awp_ros.wrench.com_region import ComRegion
 from awp_ros.wrench.contact_forces import MeasuredForces
 
 __all__ = ['AXES', 'FeasibilityResult', 'LegResult', 'REGIONS', 'WrenchSetResult',
-           'directional_by_axis', 'region_dict']
+           'directional_by_axis', 'margin_dict', 'region_dict']
 
 #: Names of the wrench axes, in the order of every 6-vector: force [N], moment [N.m].
 AXES = ('fx', 'fy', 'fz', 'mx', 'my', 'mz')
@@ -114,14 +114,7 @@ class WrenchSetResult(SetMargin):
         ``halfspaces`` rows are ``[a_1 .. a_6, b]`` with ``a . x <= b``; for a flat set the
         affine hull is ``hull_origin + span(hull_basis columns)``.
         """
-        out = {
-            'margin': _float(self.margin),
-            'margin_in_hull': _float(self.margin_in_hull),
-            'normal': _floats(self.normal),
-            'dimension': self.dimension,
-            'affine_residual': _float(self.affine_residual),
-            'feasible': self.feasible,
-        }
+        out = margin_dict(self)
         if halfspaces:
             P = self.polytope
             out['halfspaces'] = _rows(P.halfspaces()) if not P.is_empty else []
@@ -165,6 +158,12 @@ class FeasibilityResult:
     margins at ``wrench`` this cycle, without the FWS (axis -> (plus, minus), as
     :attr:`WrenchSetResult.directional`;
     :func:`~awp_ros.wrench.fws_queries.directional_margins_of_legs`), else None.
+    ``fws_margin_per_cycle``: with three or more stance legs and ``wrench`` outside the FWS
+    (the feasible region without the CoM), the FWS's signed margin (minus the distance to it)
+    and witness this cycle, without the FWS
+    (:class:`~awp_ros.geometry.margin.SetMargin`;
+    :func:`~awp_ros.wrench.fws_queries.outside_margin_of_points`), else None (inside, the
+    margin is the distance to the nearest facet: the FWS's H-rep gives it).
     ``com_velocity``: ``c'`` (3,) [m/s], world axes, when the state had a ``base_twist``
     (else None); ``capture_point``: the instantaneous capture point ``c' / omega_0``
     (``omega_0 = sqrt(g / h)``, ``h`` the CoM height above the stance feet's mean height)
@@ -193,6 +192,7 @@ class FeasibilityResult:
     capture_margin_per_cycle: float = math.nan
     two_leg_fws_feasible: bool | None = None
     fws_directional_per_cycle: dict[str, tuple[float, float]] | None = None
+    fws_margin_per_cycle: SetMargin | None = None
 
     @property
     def feasible_region(self) -> ComRegion | None:
@@ -296,8 +296,22 @@ class FeasibilityResult:
             'fws_directional_per_cycle': None if self.fws_directional_per_cycle is None else {
                 axis: {'plus': _float(p), 'minus': _float(m)}
                 for axis, (p, m) in self.fws_directional_per_cycle.items()},
+            'fws_margin_per_cycle': None if self.fws_margin_per_cycle is None
+            else margin_dict(self.fws_margin_per_cycle),
             'timings_ms': dict(self.timings_ms),
         }
+
+
+def margin_dict(m: SetMargin) -> dict:
+    """Return a margin's fields as JSON-ready builtins (non-finite numbers become None)."""
+    return {
+        'margin': _float(m.margin),
+        'margin_in_hull': _float(m.margin_in_hull),
+        'normal': _floats(m.normal),
+        'dimension': int(m.dimension),
+        'affine_residual': _float(m.affine_residual),
+        'feasible': bool(m.feasible),
+    }
 
 
 def directional_by_axis(t_plus: Sequence[float], t_minus: Sequence[float]

@@ -40,6 +40,8 @@ Kernels (same equations as the numpy code, see :mod:`awp_ros.geometry.linalg`):
   :func:`two_leg_contains`: the FWS's verdict for two stance legs (a ratio test on the line
   of their force distributions);
   :func:`slack_min`: the first row of least slack ``b - A w`` (the margins' inside test);
+  :func:`min_norm_point`: the nearest point of the FWS to a wrench outside it, from the legs'
+  lifted points (Wolfe's algorithm; its reference is the H-rep's least-distance program);
 * :func:`cycle_sets` and :func:`cycle_regions`: a control cycle's sets (with the margins'
   slacks) and its three CoM regions, each in one call of the kernels above;
 * :func:`slice_facet_normals`: the FWS's face choices of the patterns (2, 1, 1, 1), (2, 2, 1),
@@ -3855,6 +3857,205 @@ def two_leg_contains(positions: np.ndarray, force_A: np.ndarray, force_b: np.nda
         float(hull_tol), float(tol), float(parallel_tol), float(feet_apart)))
 
 
+# -- The nearest point of the FWS to a wrench outside it (Wolfe's algorithm) -------------------
+#
+# S = sum_k conv{g_kj}, the legs' lifted points; y = s - w ranges over S - w. The oracle
+# q(x) = argmin_{y in S - w} x . y is one argmin per leg; a corral of affinely independent
+# atoms (points of S - w) carries x, the nearest point to 0 of their affine hull, with weights
+# lam > 0 (Wolfe 1976; awp_ros.wrench.fws_queries.fws_distance has the equations).
+
+
+@_jit(inline=True)
+def _sum_oracle(G, starts, K, x, w, out):
+    """Write ``q = argmin_{y in S - w} x . y`` (each leg's argmin, summed, minus w) to out."""
+    for i in range(6):
+        out[i] = -w[i]
+    for k in range(K):
+        best, at = np.inf, starts[k]
+        for j in range(starts[k], starts[k + 1]):
+            v = x[0] * G[0, j] + x[1] * G[1, j] + x[2] * G[2, j] + x[3] * G[3, j] \
+                + x[4] * G[4, j] + x[5] * G[5, j]
+            if v < best:
+                best, at = v, j
+        for i in range(6):
+            out[i] += G[i, at]
+
+
+@_jit(inline=True)
+def _affine_minimiser(Y, m, alpha, Q, R, rank_tol):
+    r"""
+    Write the affine weights ``alpha`` of the nearest point to 0 of ``aff(Y[:m])``.
+
+    .. math:: d_j = y_j - y_0 = Q R, \quad R \beta = -Q^T y_0, \quad
+              \alpha = (1 - 1^T \beta,\ \beta)
+
+    (Gram-Schmidt twice on the ``m - 1 <= 6`` columns ``d_j``). Return False when the atoms
+    are affinely dependent: a column's residual at most ``rank_tol`` times its length.
+    """
+    n = m - 1
+    for j in range(n):
+        norm0 = 0.0
+        for i in range(6):
+            Q[i, j] = Y[j + 1, i] - Y[0, i]
+            norm0 += Q[i, j] * Q[i, j]
+        norm0 = np.sqrt(norm0)
+        for c in range(j):
+            R[c, j] = 0.0
+        for _ in range(2):                 # twice is enough (Kahan-Parlett)
+            for c in range(j):
+                dot = 0.0
+                for i in range(6):
+                    dot += Q[i, c] * Q[i, j]
+                R[c, j] += dot
+                for i in range(6):
+                    Q[i, j] -= dot * Q[i, c]
+        norm = 0.0
+        for i in range(6):
+            norm += Q[i, j] * Q[i, j]
+        norm = np.sqrt(norm)
+        if norm == 0.0 or norm <= rank_tol * norm0:
+            return False
+        R[j, j] = norm
+        for i in range(6):
+            Q[i, j] /= norm
+    total = 0.0
+    for j in range(n - 1, -1, -1):         # back substitution
+        acc = 0.0
+        for i in range(6):
+            acc -= Q[i, j] * Y[0, i]
+        for c in range(j + 1, n):
+            acc -= R[j, c] * alpha[c + 1]
+        alpha[j + 1] = acc / R[j, j]
+        total += alpha[j + 1]
+    alpha[0] = 1.0 - total
+    return True
+
+
+@_jit(inline=True)
+def _corral_point(Y, lam, m, x):
+    """Write ``x = sum_i lam_i Y[i]`` and return ``|x|^2``."""
+    xx = 0.0
+    for i in range(6):
+        acc = 0.0
+        for c in range(m):
+            acc += lam[c] * Y[c, i]
+        x[i] = acc
+        xx += acc * acc
+    return xx
+
+
+@_jit
+def _min_norm_point(G, leg, K, w, tol, floor, max_iter):
+    """See :func:`min_norm_point`."""
+    nearest = np.full(6, np.nan)
+    starts = np.zeros(K + 1, dtype=np.int64)
+    for j in range(G.shape[1]):
+        starts[leg[j] + 1] += 1
+    for k in range(K):
+        if starts[k + 1] == 0:
+            return np.inf, nearest, np.inf, 0, 3
+        starts[k + 1] += starts[k]
+    Y, lam, alpha = np.empty((7, 6)), np.empty(7), np.empty(7)
+    Q, R = np.empty((6, 6)), np.zeros((6, 6))
+    x, q = np.zeros(6), np.empty(6)
+    # The first atom: the point of S - w farthest towards w from the legs' mean points' sum.
+    for j in range(G.shape[1]):
+        size = starts[leg[j] + 1] - starts[leg[j]]
+        for i in range(6):
+            x[i] += G[i, j] / size
+    for i in range(6):
+        x[i] -= w[i]
+    _sum_oracle(G, starts, K, x, w, q)
+    Y[0] = q
+    lam[0] = 1.0
+    m = 1
+    xx = _corral_point(Y, lam, m, x)
+    bound = np.inf
+    status, iterations = 1, 0
+    while iterations < max_iter:
+        iterations += 1
+        norm = np.sqrt(xx)
+        if norm <= tol:                   # w is in S, to tol
+            bound, status = norm, 0
+            break
+        _sum_oracle(G, starts, K, x, w, q)
+        gap = xx
+        for i in range(6):
+            gap -= x[i] * q[i]
+        bound = min(gap / norm, norm)
+        if gap / norm <= tol or gap <= floor:
+            status = 0
+            break
+        if m == 7:                        # seven atoms span R^6: x = 0 unless rounding
+            status = 2
+            break
+        Y[m] = q
+        lam[m] = 0.0
+        m += 1
+        dependent = False
+        while True:                       # the minor cycle
+            if not _affine_minimiser(Y, m, alpha, Q, R, 1e-12):
+                dependent = True
+                break
+            positive = True
+            for i in range(m):
+                positive = positive and alpha[i] > 1e-14
+            if positive:
+                for i in range(m):
+                    lam[i] = alpha[i]
+                break
+            # Move from lam towards alpha until a weight vanishes; drop those atoms.
+            theta = 1.0
+            for i in range(m):
+                if alpha[i] <= 1e-14 and lam[i] - alpha[i] > 0.0:
+                    theta = min(theta, lam[i] / (lam[i] - alpha[i]))
+            smallest = 0
+            for i in range(m):
+                lam[i] = (1.0 - theta) * lam[i] + theta * alpha[i]
+                if lam[i] < lam[smallest]:
+                    smallest = i
+            kept, total = 0, 0.0
+            for i in range(m):
+                if lam[i] > 1e-14 and i != smallest:
+                    Y[kept] = Y[i]
+                    lam[kept] = lam[i]
+                    total += lam[i]
+                    kept += 1
+            m = kept
+            for i in range(m):
+                lam[i] /= total
+        if dependent:                     # the new atom: no progress in floating point
+            status = 2
+            break
+        xx = _corral_point(Y, lam, m, x)
+    for i in range(6):
+        nearest[i] = w[i] + x[i]
+    return np.sqrt(xx), nearest, bound, iterations, status
+
+
+def min_norm_point(G: np.ndarray, leg: np.ndarray, K: int, w: np.ndarray, tol: float,
+                   floor: float, max_iter: int = 200) -> tuple[float, np.ndarray, float, int, int]:
+    r"""
+    Return the nearest point to ``w`` of ``S = sum_k conv{G[:, leg == k]}``, by Wolfe's algorithm.
+
+    :func:`awp_ros.wrench.fws_queries.fws_distance` has the equations. ``G`` (6, n) the legs'
+    lifted points, contiguous per leg; ``leg`` (n,) their legs ``0 .. K - 1``; ``w`` (6,).
+    It stops when the gap ``eps = x . x - x . q`` of the iterate ``x = s - w`` and the
+    oracle's point ``q`` gives ``eps / |x| <= tol``, or ``eps <= floor`` (rounding: the
+    direction of a tiny ``x`` is only known to about the points' size times the machine
+    epsilon over ``|x|``).
+
+    :return: ``(distance, nearest (6,), bound, iterations, status)``: ``distance = |x|``,
+        an upper bound of ``dist(w, S)`` within ``bound`` of it (``min(eps / |x|, |x|)``);
+        status 0 converged, 1 ``max_iter`` reached, 2 the atoms became affinely dependent
+        before convergence, 3 a leg without points (distance inf).
+    """
+    d, nearest, bound, iterations, status = _min_norm_point(
+        np.ascontiguousarray(G, dtype=float), np.ascontiguousarray(leg, dtype=np.int64),
+        int(K), np.ascontiguousarray(w, dtype=float), float(tol), float(floor), int(max_iter))
+    return float(d), nearest, float(bound), int(iterations), int(status)
+
+
 def compile_all() -> None:
     """
     Compile (or load from the disk cache) every kernel on small inputs, once per process.
@@ -3911,6 +4112,8 @@ def compile_all() -> None:
     survivor_normals(rng.normal(size=(1, 1, 20)), rng.normal(size=(1, 1, 15)), index, index,
                      index, 3, 2, 1, 0.0)                   # the general kernel
     first_of_equal_rows(g, 10)
+    min_norm_point(lifted, np.repeat(np.arange(2), cube.shape[0]), 2,
+                   np.array([9.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 1e-9, 1e-13)
     ratio_test(g.T, np.ones(8), np.zeros(6), np.eye(6), 1e-6, 1e-9)
     two_leg_contains(g[:2, :3], box[None].repeat(2, 0), np.ones((2, 6)),
                      -box[None, :4].repeat(2, 0), np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), 1.0,

@@ -241,7 +241,12 @@ def report_bytes(header: Header, result: FeasibilityResult | None, *, compute_ti
     never true when the current FWP excludes the
     wrench. ``fws_directional_*`` are this cycle's with three or more stance legs
     (:attr:`~awp_ros.evaluation.result.FeasibilityResult.fws_directional_per_cycle`), else
-    those of ``fws``.
+    those of ``fws``. The other ``fws_*`` fields are those of ``fws``, but when the wrench
+    is outside the FWS with three or more stance legs and ``fws`` was not computed for this
+    message: then they are this cycle's
+    (:attr:`~awp_ros.evaluation.result.FeasibilityResult.fws_margin_per_cycle`: the signed
+    margin, minus the distance to the FWS, and its witness), and ``fws_stamp`` is the
+    header's.
 
     :param header: stamp of the answered joint state; frame_id the wrench frame.
     :param result: the evaluation, or None (not evaluated).
@@ -274,7 +279,11 @@ def report_bytes(header: Header, result: FeasibilityResult | None, *, compute_ti
                 *np.asarray(result.com, dtype=float).tolist(),
                 *np.asarray(result.wrench, dtype=float).tolist())
         fws = result.fws if fws is None else fws
-        sets = (_set_values(result.awp), _set_values(result.fwp), _set_values(fws))
+        fresh = fws is not None and (fws_stamp is None or fws_stamp == stamp)
+        # Outside the FWS with three or more legs, its margin and witness are this cycle's.
+        outside = None if fresh else result.fws_margin_per_cycle
+        sets = (_set_values(result.awp), _set_values(result.fwp),
+                _set_values(fws if outside is None else outside))
         # This cycle's directional margins (three or more legs), else the FWS's.
         d = result.fws_directional_per_cycle
         if d is None and fws is not None:
@@ -283,11 +292,11 @@ def report_bytes(header: Header, result: FeasibilityResult | None, *, compute_ti
             plus, minus = [float(d[a][0]) for a in AXES], [float(d[a][1]) for a in AXES]
         else:
             plus, minus = _NAN6_LIST, _NAN6_LIST
-        at = stamp if fws_stamp is None else fws_stamp
-        directional = (plus, minus) + ((at.sec, at.nanosec) if fws is not None else (0, 0))
+        at = stamp if fws_stamp is None or outside is not None else fws_stamp
+        directional = (plus, minus) + ((at.sec, at.nanosec) if fws is not None or
+                                       outside is not None else (0, 0))
         # The FWS's verdict when it was computed for this joint state, else this cycle's
         # (three or more legs: the feasible region; two: their LP), else the latest FWS's.
-        fresh = fws is not None and (fws_stamp is None or fws_stamp == stamp)
         per_cycle = None if fresh else result.fws_feasible_per_cycle
         in_fws = (sets[2][5] or fws_pending and fws is None) if per_cycle is None else per_cycle
         feasible = bool(sets[1][5] and in_fws)

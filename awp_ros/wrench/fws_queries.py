@@ -20,6 +20,11 @@ The same LPs by the compiled dense simplex of the feasible region take about 0.0
 (:func:`directional_margins_of_legs`, README "Speed"): the FWS's directional margins every
 cycle.
 
+When ``w`` is outside S, its distance to S and the nearest point are a quadratic program over
+(1), solved by Wolfe's minimum-norm-point algorithm on the legs' points (:func:`fws_distance`,
+a few microseconds): the FWS's signed margin and witness every cycle when it is negative. (Inside,
+the margin is the distance to the nearest facet, which needs the facets: the H-rep.)
+
 With two stance legs membership is a one-dimensional LP (:func:`two_leg_contains`): a force
 along the line through both feet is the same wrench from either foot, so the force
 distributions of a wrench on the legs' hyperplane form a line, cut by each leg's rows in an
@@ -35,16 +40,23 @@ import numpy as np
 from awp_ros.errors import InputError
 from awp_ros.geometry import kernels
 from awp_ros.geometry.linalg import cross3
-from awp_ros.geometry.margin import line_interval
+from awp_ros.geometry.margin import line_interval, SetMargin
 from awp_ros.wrench.wrench_polytope import lift_matrices
 
-__all__ = ['directional_margins_of_legs', 'directional_of_points', 'lp_directional_margins',
+__all__ = ['directional_margins_of_legs', 'directional_of_points', 'fws_distance',
+           'lifted_points', 'lp_directional_margins', 'outside_margin_of_points',
            'two_leg_contains']
 
 #: Feet closer than this [m] span no hyperplane: :func:`two_leg_contains` answers None.
 FEET_APART = 1e-6
 #: ``|a . u|`` below this (unit rows and line) counts as a row parallel to the line.
 PARALLEL_TOL = 1e-12
+#: :func:`fws_distance`'s tolerances, relative to the scale ``K max |g|`` of the legs' points:
+#: the distance's (``DISTANCE_RTOL``) and, squared, the rounding floor of the gap.
+DISTANCE_RTOL = 1e-11
+GAP_FLOOR_RTOL = 1e-13
+#: Largest number of Wolfe iterations (four HyQ legs take 10-30).
+MAX_WOLFE_ITERATIONS = 500
 
 
 def lp_directional_margins(positions: np.ndarray, vertex_sets: Sequence[np.ndarray],
@@ -71,13 +83,7 @@ def lp_directional_margins(positions: np.ndarray, vertex_sets: Sequence[np.ndarr
     :return: ``(member, t_plus, t_minus)``, the last two of shape (6,) [N or N.m].
     :raises InputError: on bad shapes or non-finite values.
     """
-    P = np.asarray(positions, dtype=float)
-    w = np.asarray(w, dtype=float)
-    if P.ndim != 2 or P.shape[1] != 3 or len(vertex_sets) != P.shape[0]:
-        msg = f'positions {P.shape} and {len(vertex_sets)} vertex sets do not match'
-        raise InputError(msg)
-    if w.shape != (6,) or not np.isfinite(w).all() or not np.isfinite(P).all():
-        raise InputError(f'w must be a finite (6,) wrench; got shape {w.shape}')
+    P, w = _checked(positions, vertex_sets, w)
     nan = np.full(6, np.nan)
     V = [np.asarray(v, dtype=float).reshape(-1, 3) for v in vertex_sets]
     if any(v.shape[0] == 0 for v in V):
@@ -141,6 +147,121 @@ def directional_of_points(K: int, points: tuple, w: np.ndarray
     """
     plus, minus, status = kernels.directional_margins_of_points(*points[:2], K, points[2], w)
     return None if status else (plus, minus)
+
+
+def fws_distance(positions: np.ndarray, vertex_sets: Sequence[np.ndarray], w: np.ndarray
+                 ) -> tuple[float, np.ndarray, float, int]:
+    r"""
+    Return the distance from ``w`` to S and S's nearest point, without the H-rep.
+
+    .. math::
+
+        d(w, S) = \min_{s \in S} |s - w|, \qquad S = \sum_k L_k\, \mathrm{conv}(V_k)
+
+    Wolfe's minimum-norm-point algorithm (P. Wolfe, *Finding the nearest point in a
+    polytope*, Math. Programming 11, 1976) over ``S - w``, with the linear minimisation
+    oracle of a Minkowski sum, one argmin per leg:
+
+    (1) ``q(x) = argmin_{y in S - w} x . y = sum_k L_k v_k(x) - w``,
+        ``v_k(x) = argmin_{v in V_k} (L_k^T x) . v``;
+    (2) a *corral*: affinely independent points ``y_i`` of ``S - w`` (sums of one vertex
+        per leg; at most 6 when ``w`` is outside) whose affine hull's nearest point to 0,
+        ``x = sum_i lam_i y_i``, has weights ``lam_i > 0``; each major step adds ``q(x)``,
+        and the minor steps, when the affine hull's nearest point leaves the atoms' hull,
+        move to the last point inside it and drop the atoms whose weight vanished;
+    (3) it stops when the gap ``eps = x . x - x . q(x)`` is small: every ``y`` in ``S - w``
+        has ``x . y >= x . q(x)``, so
+
+        .. math:: |x| - \frac{\epsilon}{|x|} \le d(w, S) \le |x|.
+
+    The nearest point is ``s* = w + x`` (a convex combination of sums of vertices, in S up
+    to rounding) and the distance ``|x|``, accurate to the bound (3): ``DISTANCE_RTOL``
+    times the scale ``K max |g|`` of the lifted points, unless the gap reaches the rounding
+    floor (``eps <= GAP_FLOOR_RTOL scale^2``: for a ``w`` a few micro-newtons outside, the
+    direction of ``x`` is known to about the machine epsilon times ``scale / |x|``).
+    Compiled (:func:`awp_ros.geometry.kernels.min_norm_point`); its reference in the tests
+    is the least-distance program on the FWS's H-rep
+    (:func:`~awp_ros.geometry.margin.polytope_margin`), a different method.
+
+    :param positions: (K, 3) feet relative to the CoM [m], world-aligned axes.
+    :param vertex_sets: K arrays (n_k, 3) of points [N] (each leg's friction-bounded
+        polytope's vertices).
+    :param w: (6,) wrench [N, N.m], same frame.
+    :return: ``(distance, nearest (6,), bound, status)``: ``distance`` [N, N.m] an upper
+        bound of ``d(w, S)`` within ``bound`` of it (0 when ``w`` is in S, to the
+        tolerance), status 0 converged, 1 not within :data:`MAX_WOLFE_ITERATIONS`, 2 the
+        atoms became numerically dependent first, 3 a leg without points (distance inf).
+    :raises InputError: on bad shapes or non-finite values.
+    """
+    P, w = _checked(positions, vertex_sets, w)
+    G, leg, _ = lifted_points(P, vertex_sets)
+    return _distance(G, leg, len(vertex_sets), w)
+
+
+def lifted_points(positions: np.ndarray, vertex_sets: Sequence[np.ndarray]
+                  ) -> tuple[np.ndarray, np.ndarray, int]:
+    """
+    Return the legs' lifted points ``[v; p_k x v]`` as the per-cycle kernels give them.
+
+    ``(G (6, n), leg (n,), status)``, each leg's points contiguous, status 1 when a leg has
+    none (:func:`awp_ros.geometry.kernels.cycle_regions`' last entry).
+    """
+    V = [np.asarray(v, dtype=float).reshape(-1, 3) for v in vertex_sets]
+    L = lift_matrices(np.asarray(positions, dtype=float).reshape(-1, 3))
+    G = np.hstack([np.zeros((6, 0))] + [Lk @ v.T for Lk, v in zip(L, V)])
+    leg = np.repeat(np.arange(len(V)), [v.shape[0] for v in V])
+    return G, leg, int(any(v.shape[0] == 0 for v in V))
+
+
+def outside_margin_of_points(K: int, points: tuple, w: np.ndarray, feasibility_tol: float
+                             ) -> tuple[SetMargin | None, str]:
+    """
+    Return the FWS's signed margin of a wrench outside it, from the legs' lifted points.
+
+    ``points``: ``(G, leg, status)`` of :func:`awp_ros.geometry.kernels.cycle_regions` (the
+    feasible region's points, ``K >= 3`` legs: a 6D FWS), ``w`` [N, N.m] a wrench the
+    feasible region found outside. The margin is ``-d(w, S)`` (:func:`fws_distance`), the
+    witness the unit direction from the nearest point to ``w``, as
+    :func:`~awp_ros.geometry.margin.polytope_margin` reports them on the H-rep:
+    ``dimension`` 6, ``affine_residual`` 0, ``feasible`` when ``d <= feasibility_tol``.
+
+    :return: ``(margin, problem)``: the margin and ``''``; or None and ``''`` without
+        points (a leg without vertices: no region either); or None and the reason when
+        Wolfe's algorithm did not converge, or stopped by rounding with a bound above
+        ``feasibility_tol`` (the caller reports it as a warning).
+    """
+    G, leg, status = points
+    if status != 0 or G.shape[1] == 0:
+        return None, ''
+    d, nearest, bound, status = _distance(G, leg, K, w)
+    if status != 0 and not (status == 2 and bound <= feasibility_tol):
+        return None, (f"FWS distance: Wolfe's algorithm stopped (status {status}) at "
+                      f'{d:.6g} with a bound {bound:.3g} [N, N.m]; margin left to the FWS')
+    normal = (w - nearest) / d if d > 0.0 else np.zeros(6)
+    return SetMargin(margin=-d, normal=normal, dimension=6, affine_residual=0.0,
+                     feasible=bool(d <= feasibility_tol), margin_in_hull=-d), ''
+
+
+def _checked(positions: np.ndarray, vertex_sets: Sequence[np.ndarray], w: np.ndarray
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Return ``positions`` (K, 3) and ``w`` (6,) as float arrays, or raise InputError."""
+    P = np.asarray(positions, dtype=float)
+    w = np.asarray(w, dtype=float)
+    if P.ndim != 2 or P.shape[1] != 3 or len(vertex_sets) != P.shape[0]:
+        msg = f'positions {P.shape} and {len(vertex_sets)} vertex sets do not match'
+        raise InputError(msg)
+    if w.shape != (6,) or not np.isfinite(w).all() or not np.isfinite(P).all():
+        raise InputError(f'w must be a finite (6,) wrench; got shape {w.shape}')
+    return P, w
+
+
+def _distance(G: np.ndarray, leg: np.ndarray, K: int, w: np.ndarray
+              ) -> tuple[float, np.ndarray, float, int]:
+    """Return :func:`fws_distance`'s answer from the lifted points ``G`` (6, n) and ``leg``."""
+    scale = K * float(np.max(np.abs(G), initial=0.0)) + float(np.max(np.abs(w)))
+    d, nearest, bound, _, status = kernels.min_norm_point(
+        G, leg, K, w, DISTANCE_RTOL * scale, GAP_FLOOR_RTOL * scale ** 2, MAX_WOLFE_ITERATIONS)
+    return d, nearest, bound, status
 
 
 def two_leg_contains(positions: np.ndarray, force_A: np.ndarray, force_b: np.ndarray,

@@ -289,3 +289,35 @@ def test_play_into_a_running_node_gives_the_offline_reports(replayed_measured, g
         assert r['awp'] == pytest.approx(ref.awp_margin, rel=1e-9)
         assert r['fwp'] == pytest.approx(ref.fwp_margin, rel=1e-9)
         assert r['fwp_res'] == pytest.approx(ref.fwp_affine_residual, rel=1e-9, abs=1e-9)
+
+
+def test_every_report_outside_the_fws_carries_this_cycles_margin_on_the_default_bag():
+    """
+    The default bag with its IMU (the lurch's wrenches leave the FWS), the FWS at 10 Hz.
+
+    Every report of three or more stance legs whose wrench is outside the FWS carries the
+    FWS's margin and witness of its own joint state (``fws_stamp`` its stamp), equal to a full
+    recomputation of that joint state's FWS (its H-rep's least-distance program); the others
+    carry the latest FWS's.
+    """
+    from awp_ros.evaluation.evaluator import compute_fws
+    from awp_ros.gait.bag import default_bag_path
+    params, base_dir = load_parameters('hyq', {'use_imu': True})
+    pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
+    outside = inside = 0
+    for cycle in pipeline_cycles(pipeline, default_bag_path()):
+        rep, r = cycle.report, cycle.result
+        if len(rep.stance_feet) < 3 or cycle.fws_computed:
+            continue
+        if r.fws_feasible_per_cycle:                   # the feasible region: inside
+            inside += 1
+            assert r.fws_margin_per_cycle is None
+            continue
+        outside += 1
+        assert _ns(rep.fws_stamp) == _ns(rep.header.stamp)
+        S, full, _, _, _ = compute_fws(*pipeline.evaluator.fws_job(r))
+        assert full.margin < 0.0 and not rep.fws_feasible
+        assert rep.fws_margin == pytest.approx(full.margin, abs=1e-7 * (1.0 - full.margin))
+        assert rep.fws_margin_in_hull == rep.fws_margin and rep.fws_dimension == 6
+        assert list(rep.fws_normal) == pytest.approx(list(full.normal), abs=1e-6)
+    assert outside >= 50 and inside >= 3000, (outside, inside)

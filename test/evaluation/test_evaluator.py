@@ -530,8 +530,10 @@ def test_add_fws_matches_evaluate_with_fws(hyq):
     assert {'fws', 'fws_directional', 'fws_margin'} <= set(b.timings_ms)
     # 'total' is the per-cycle evaluation: its stages and glue, never the FWS stages.
     assert b.timings_ms['total'] == per_cycle['total']
-    # com_regions: in regions; fws_directional_lp: the FWS's per-cycle LPs, outside total.
-    assert set(per_cycle) == set(STAGES) | {'com_regions', 'total', 'fws_directional_lp'}
+    # com_regions: in regions; fws_directional_lp, fws_distance: the FWS's per-cycle queries
+    # (its LPs, its distance when the wrench is outside), outside total.
+    assert set(per_cycle) == set(STAGES) | {'com_regions', 'total', 'fws_directional_lp',
+                                            'fws_distance'}
 
 
 def test_timings_are_measured_durations_within_the_call(hyq):
@@ -895,3 +897,52 @@ def test_warm_up_evaluates_every_stance_size_and_leaves_other_evaluators_alone(p
     assert warm_up(config) > 0.0
     after = ev.evaluate(state)
     assert after.fws.margin == before.fws.margin and after.fwp.margin == before.fwp.margin
+
+
+def test_fws_margin_per_cycle_is_the_fws_margin_of_every_wrench_outside(hyq):
+    """
+    Three or more legs: a wrench outside the FWS gets the FWS's margin every cycle.
+
+    Its signed margin and witness without the FWS (Wolfe's nearest point) are those of the
+    H-rep's least-distance program of the same state (``evaluate`` with the FWS); inside, or
+    with two legs, there is none. ``with_wrench`` (a planner's wrench) gives the same.
+    """
+    from awp_ros.geometry import kernels
+    if not kernels.ENABLED:
+        pytest.skip('the compiled kernels are off')
+    rng = np.random.default_rng(12)
+    feet = list(hyq.feet)
+    stances = [tuple(feet), tuple(feet[:3]), tuple(feet[1:]), (feet[0], feet[1], feet[3])]
+    seen = {'inside': 0, 'outside': 0}
+    for i in range(8):
+        state = hyq.standing_state(stance=stances[i % len(stances)])
+        for name in state.joint_positions:
+            state.joint_positions[name] += rng.uniform(-0.15, 0.15)
+        base = hyq.evaluate(state, fws=False)
+        full = hyq.evaluate(state)
+        plus = full.fws.directional['fz'][0]
+        push = rng.normal(size=6)
+        wrenches = [full.wrench, full.wrench * [1, 1, -1, 1, 1, 1], full.wrench + 4.0 * push]
+        wrenches += [full.wrench + (plus + beyond) * np.eye(6)[2] for beyond in (1e-3, 20.0)]
+        for w in wrenches:
+            r = hyq.evaluate(state, wrench=w)
+            m, planner = r.fws_margin_per_cycle, hyq.with_wrench(base, w).fws_margin_per_cycle
+            assert (m is None) == (planner is None)
+            if m is not None:
+                assert planner.margin == pytest.approx(m.margin, abs=1e-9)
+            if r.fws.margin >= 0.0:
+                assert m is None
+                seen['inside'] += 1
+                continue
+            assert not r.warnings
+            assert m.margin == pytest.approx(r.fws.margin, abs=1e-7 * (1.0 - r.fws.margin))
+            np.testing.assert_allclose(m.normal, r.fws.normal, atol=1e-6)
+            assert (m.feasible, m.dimension, m.affine_residual) == (False, 6, 0.0)
+            assert r.timings_ms['fws_distance'] > 0.0
+            seen['outside'] += 1
+    assert seen['inside'] >= 8 and seen['outside'] >= 24, seen
+    two = hyq.evaluate(hyq.standing_state(stance=(feet[0], feet[3])),
+                       wrench=np.array([0.0, 0.0, -100.0, 0.0, 0.0, 0.0]))
+    assert not two.fws.feasible and two.fws_margin_per_cycle is None
+    assert two.to_dict()['fws_margin_per_cycle'] is None
+    assert r.to_dict()['fws_margin_per_cycle']['margin'] == pytest.approx(m.margin)

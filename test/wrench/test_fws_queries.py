@@ -1,18 +1,22 @@
 """
-Tests of awp_ros.wrench.fws_queries: LP membership and directional margins of the FWS.
+Tests of awp_ros.wrench.fws_queries: LP membership, directional margins and distance of the FWS.
 
 Checked against an independent method, the exact H-rep of the same Minkowski sum
 (:func:`awp_ros.wrench.feasible_wrench_set.minkowski_sum_of_lifts`) with the ratio test of
-:func:`awp_ros.geometry.margin.directional_margins`, and against scipy's ``linprog`` (no warm
-start).
+:func:`awp_ros.geometry.margin.directional_margins` and the least-distance program of
+:func:`awp_ros.geometry.margin.polytope_margin`, against qhull's hull of the vertex sums on
+small sums, and against scipy's ``linprog`` (no warm start).
 """
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.spatial import ConvexHull
 
+from awp_ros.errors import InputError
 from awp_ros.geometry.margin import directional_margins, polytope_margin
+from awp_ros.geometry.polytope import Polytope
 from awp_ros.wrench import fws_queries
 from awp_ros.wrench.feasible_wrench_set import minkowski_sum_of_lifts
 from awp_ros.wrench.fws_queries import lp_directional_margins as reexported
@@ -234,3 +238,104 @@ def test_directional_margins_every_cycle_only_with_three_or_more_legs():
                                 fws=False)
     assert result.fws_directional_per_cycle is None
     assert evaluator.directional_at(list(result.legs.values()), result.wrench) is None
+
+
+def _ray_exit(S, c, u) -> float:
+    """Return where the ray ``c + t u`` leaves the H-rep ``S`` (c inside)."""
+    a_u = S.A @ u
+    ahead = a_u > 1e-12
+    return float(np.min((S.b - S.A @ c)[ahead] / a_u[ahead]))
+
+
+def _assert_distance(P, V, w, reference, S_A, S_b):
+    """Assert fws_distance's answer at ``w`` against a margin on an H-rep ``S_A x <= S_b``."""
+    d, nearest, bound, status = fws_queries.fws_distance(P, V, w)
+    assert status == 0
+    if reference.margin >= 1e-3:                  # inside: the nearest point is w itself
+        assert d <= 1e-6
+        return 'inside'
+    assert d == pytest.approx(-reference.margin, abs=bound + 1e-9 * (1.0 + d))
+    assert bound <= max(1e-6, 1e-9 * d) or d < 1e-4      # tight unless at the rounding floor
+    assert np.max(S_A @ nearest - S_b) <= 1e-7 * (1.0 + np.abs(S_b).max())   # in S ...
+    assert np.max(S_A @ nearest - S_b) >= -1e-6 * (1.0 + d)   # ... on its boundary
+    if d > 1e-3:
+        np.testing.assert_allclose((w - nearest) / d, reference.normal, atol=1e-6)
+    return 'outside'
+
+
+@pytest.mark.parametrize('K', [3, 4])
+def test_fws_distance_is_the_least_distance_program_on_the_hrep(K):
+    """
+    Wolfe's nearest point and the H-rep's least-distance program give one distance.
+
+    HyQ-like legs; wrenches on rays from a point inside, from far inside to 1e-5 N beyond
+    the boundary and far outside: the distance, its witness, the nearest point in S and on
+    its boundary.
+    """
+    rng = np.random.default_rng(40 + K)
+    seen = {'inside': 0, 'outside': 0}
+    for _ in range(3):
+        V = [hyq_like_leg(rng) for _ in range(K)]
+        P = hyq_feet(rng, K)
+        S = minkowski_sum_of_lifts(P, V)
+        c = vertex_sums(P, V).mean(axis=0)
+        for _ in range(6):
+            u = rng.normal(size=6)
+            u /= np.linalg.norm(u)
+            t = _ray_exit(S, c, u)
+            for beyond in (-0.5 * t, 1e-5, 1e-2, 1.0, 100.0, 1e4):
+                w = c + (t + beyond) * u
+                seen[_assert_distance(P, V, w, polytope_margin(S, w), S.A, S.b)] += 1
+    assert seen['outside'] == 5 * 18 and seen['inside'] == 18
+
+
+def test_fws_distance_matches_qhull_on_small_sums():
+    """Small sums (3 legs of 4-6 random points): qhull's hull of the vertex sums decides."""
+    rng = np.random.default_rng(7)
+    for _ in range(5):
+        V = [rng.normal(scale=300.0, size=(int(rng.integers(4, 7)), 3)) + [0.0, 0.0, 200.0]
+             for _ in range(3)]
+        P = hyq_feet(rng, 3)
+        hull = ConvexHull(vertex_sums(P, V))
+        A, b = hull.equations[:, :6], -hull.equations[:, 6]
+        S = Polytope(6, hull.points[hull.vertices], A, b, np.zeros(6), np.eye(6))
+        c = hull.points[hull.vertices].mean(axis=0)
+        for _ in range(6):
+            u = rng.normal(size=6)
+            u /= np.linalg.norm(u)
+            w = c + (_ray_exit(S, c, u) + rng.choice([1e-3, 1.0, 300.0])) * u
+            assert _assert_distance(P, V, w, polytope_margin(S, w), A, b) == 'outside'
+
+
+def test_fws_distance_of_no_leg_points_and_bad_input():
+    """A leg without points: status 3 (no set); shapes are checked."""
+    P = np.zeros((2, 3))
+    d, _, _, status = fws_queries.fws_distance(P, [np.ones((2, 3)), np.zeros((0, 3))], np.ones(6))
+    assert status == 3 and d == np.inf
+    with pytest.raises(InputError):
+        fws_queries.fws_distance(P, [np.ones((2, 3))], np.ones(6))
+    with pytest.raises(InputError):
+        fws_queries.fws_distance(P, [np.ones((2, 3))] * 2, np.full(6, np.nan))
+
+
+def test_outside_margin_of_points_is_polytope_margins_report():
+    """The margin of a wrench outside, as polytope_margin reports it on the H-rep."""
+    rng = np.random.default_rng(3)
+    V = [hyq_like_leg(rng) for _ in range(4)]
+    P = hyq_feet(rng, 4)
+    S = minkowski_sum_of_lifts(P, V)
+    c = vertex_sums(P, V).mean(axis=0)
+    u = np.eye(6)[2]
+    points = fws_queries.lifted_points(P, V)
+    for beyond, feasible in ((20.0, False), (5e-7, True)):   # within feasibility_tol: feasible
+        w = c + (_ray_exit(S, c, u) + beyond) * u
+        got, problem = fws_queries.outside_margin_of_points(4, points, w, 1e-6)
+        ref = polytope_margin(S, w, feasibility_tol=1e-6)
+        assert problem == '' and got.feasible is feasible and ref.feasible is feasible
+        assert got.margin == pytest.approx(ref.margin, abs=1e-7)
+        assert got.margin_in_hull == got.margin and got.dimension == 6
+        assert got.affine_residual == 0.0
+        if beyond > 1.0:
+            np.testing.assert_allclose(got.normal, ref.normal, atol=1e-9)
+    none = (np.zeros((6, 0)), np.zeros(0, dtype=int), 1)
+    assert fws_queries.outside_margin_of_points(4, none, c, 1e-6) == (None, '')
