@@ -151,3 +151,20 @@ def test_every_report_of_the_default_bag_has_the_fws_verdict_of_its_own_joint_st
     assert out[2]['latest differs'] > 50
     assert out[3]['directional differs'] == out[4]['directional differs'] == 0
     assert out[4]['latest directional off'] > 10.0
+    assert out[3]['outside'] == out[4]['outside'] == 0       # quasi-static: never outside
+
+
+def test_every_report_outside_the_fws_has_its_own_margin_with_the_imu():
+    """
+    With the bag's IMU the lurch leaves the FWS: those reports carry their own margin.
+
+    ``fws_verdict_age.count(use_imu=True)`` over the joint states up to the lurch's end (6.5 s
+    of the bag at 500 Hz): every three-leg report outside the FWS without an FWS of its own has
+    the ``fws_margin`` of a full recomputation of its joint state's FWS, where the latest FWS's
+    (what they carried before session 24) was off.
+    """
+    from fws_verdict_age import count
+    out = count(max_states=3300, use_imu=True)
+    assert out[3]['outside'] >= 90 and out[3]['margin differs'] == 0
+    assert out[4]['outside'] == 0 and out[3]['latest margin off'] > 1.0
+    assert all(c['differs'] == 0 for c in out.values())

@@ -107,12 +107,14 @@ def summarize_reports(reports: Iterable) -> ReplaySummary:
 
     :param reports: ``FeasibilityReport`` messages (rclpy or rosbags objects), in order. Each
         FWS margin is taken once, from the first report carrying it (a new ``fws_stamp``:
-        the cycle it was computed for, or with ``fws_lag_s`` the one it was released in).
+        the cycle it was computed for, or with ``fws_lag_s`` the one it was released in; a
+        wrench outside the FWS has its own, and the reports after it return to the latest
+        FWS's, not counted again).
     """
     s = ReplaySummary()
     values: dict[str, list] = {'awp_margin': [], 'fwp_margin': [], 'fws_margin': []}
     regions: dict[str, list] = {name: [] for name in _REGIONS}
-    last_fws = None
+    seen_fws: set[tuple[int, int]] = set()
     for r in reports:
         s.reports += 1
         name = STATUS_NAMES.get(int(r.status), f'status_{int(r.status)}')
@@ -129,9 +131,9 @@ def summarize_reports(reports: Iterable) -> ReplaySummary:
         regions['fwp_region'].append(getattr(r, 'fwp_region_margin', math.nan))
         regions['feasible_region'].append(getattr(r, 'feasible_region_margin', math.nan))
         fws_stamp = (r.fws_stamp.sec, r.fws_stamp.nanosec)
-        if fws_stamp != last_fws and not math.isnan(r.fws_margin):
+        if fws_stamp not in seen_fws and not math.isnan(r.fws_margin):
             values['fws_margin'].append(r.fws_margin)
-            last_fws = fws_stamp
+            seen_fws.add(fws_stamp)
     for name, vals in values.items():
         x = np.asarray(vals, dtype=float)
         x = x[np.isfinite(x)]

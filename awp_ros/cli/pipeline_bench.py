@@ -5,19 +5,21 @@ Time the node's pipeline, message by message, over a bag (no DDS): where a joint
 
     python -m awp_ros.cli.pipeline_bench [BAG] [--robot hyq] [--repeat 2] [-p KEY=VALUE ...]
 
-Reads the joint states and contacts of ``BAG`` (default: the default bag,
-``config/hyq_gait.mcap``), feeds them to :class:`awp_ros.ros.pipeline.Pipeline` in recorded order
-as ``awp_node`` does, with the robot's parameters and the ``-p`` overrides (as ``awp_replay``;
-``-p fws_rate_hz=0``: the FWS every cycle, its cost amortised over the bag in
+Reads the joint states and contacts (with ``-p use_imu=true`` the IMU too) of ``BAG`` (default:
+the default bag, ``config/hyq_gait.mcap``), feeds them to :class:`awp_ros.ros.pipeline.Pipeline`
+in recorded order as ``awp_node`` does, with the robot's parameters and the ``-p`` overrides (as
+``awp_replay``; ``-p fws_rate_hz=0``: the FWS every cycle, its cost amortised over the bag in
 ``fws_amortised_ms``) (the first pass warms up, the last is timed) and prints, per joint state,
 the mean and median wall time of :meth:`~awp_ros.ros.pipeline.Pipeline.on_joint_state` [ms], how
 often the contact wrench cone reused its last facets (``cwc_reused``, ``cwc_searched``), the
 mean of each evaluation stage (:data:`awp_ros.evaluation.evaluator.STAGES`), of the FWS's
-per-cycle directional margins (``fws_directional_lp``, three or more stance legs), of its per-cycle
-distance when the wrench is outside it (``fws_distance``, three or more legs), and of the FWS
-amortised over all joint states, the rest (report and input conversion), and the means by number
-of stance legs, with the median time of the FWS computed for a joint state of that many stance
-legs (``fws_ms_by_stance_legs``). Its last line is one JSON object. Output messages other than
+per-cycle directional margins (``fws_directional_lp``, three or more stance legs), of its
+per-cycle distance when the wrench is outside it (``fws_distance``, three or more legs; the
+count of those joint states and its median over them, ``fws_distance_outside`` and
+``fws_distance_outside_p50_ms``), and of the FWS amortised over all joint states, the rest
+(report and input conversion), and the means by number of stance legs, with the median time of
+the FWS computed for a joint state of that many stance legs (``fws_ms_by_stance_legs``). Its
+last line is one JSON object. Output messages other than
 the report are not built (as in a node without subscribers to them).
 """
 
@@ -46,7 +48,7 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
     """
     from awp_ros_msgs.msg import ContactState
     from rclpy.serialization import deserialize_message
-    from sensor_msgs.msg import JointState
+    from sensor_msgs.msg import Imu, JointState
 
     from awp_ros.bags.reader import read_bag
     from awp_ros.evaluation.evaluator import STAGES
@@ -57,6 +59,8 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
     params, base_dir = load_parameters(robot, overrides)
     pipeline = Pipeline.from_parameters(params, base_dir=base_dir)
     types = {'/joint_states': JointState, '/contacts': ContactState}
+    if pipeline.params.use_imu:
+        types['/imu'] = Imu
     msgs = [(m.topic, deserialize_message(m.data, types[m.topic]))
             for m in read_bag(bag, topics=list(types))]
     for _ in range(max(1, repeat)):
@@ -66,6 +70,9 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
         for topic, msg in msgs:
             if topic == '/contacts':
                 pipeline.on_contacts(msg)
+                continue
+            if topic == '/imu':
+                pipeline.on_imu(msg)
                 continue
             t0 = time.perf_counter()
             cycle = pipeline.on_joint_state(msg)
@@ -90,7 +97,10 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
         out[f'{s}_ms'] for s in stages)
     out['mean_ms_by_stance_legs'] = {int(k): float(wall_a[legs_a == k].mean())
                                      for k in np.unique(legs_a)}
-    fws_a = np.array(fws)
+    fws_a, distance = np.array(fws), np.array(stages['fws_distance'])
+    out['fws_distance_outside'] = int(np.count_nonzero(distance))
+    out['fws_distance_outside_p50_ms'] = float(np.median(distance[distance > 0])) \
+        if distance.any() else float('nan')
     out['fws_ms_by_stance_legs'] = {int(k): float(np.median(fws_a[(legs_a == k) & (fws_a > 0)]))
                                     for k in np.unique(legs_a[fws_a > 0])}
     return out
@@ -121,7 +131,11 @@ def main(argv: list[str] | None = None) -> int:
              f'{out["fws_computed"]} times; contact wrench cone: facets reused '
              f'{out["cwc_reused"]} times, searched {out["cwc_searched"]}']
     lines += [f'  {k[:-3]:<20} {v:.4f} ms (mean per joint state)' for k, v in out.items()
-              if k.endswith('_ms') and k not in ('mean_ms', 'p50_ms')]
+              if k.endswith('_ms')
+              and k not in ('mean_ms', 'p50_ms', 'fws_distance_outside_p50_ms')]
+    if out['fws_distance_outside']:
+        lines.append(f'  fws_distance         {out["fws_distance_outside_p50_ms"]:.4f} ms (median '
+                     f'over the {out["fws_distance_outside"]} joint states outside the FWS)')
     lines += [f'  {k} stance legs: {v:.3f} ms mean per joint state'
               + (f', its FWS {out["fws_ms_by_stance_legs"][k]:.3f} ms (median)'
                  if k in out['fws_ms_by_stance_legs'] else '')

@@ -81,11 +81,12 @@ class MarginSeries:
             x[~valid] = np.nan
             return x
 
-        # Each FWS once, at the first valid report carrying it (the cycle it was computed
-        # for; with fws_lag_s, the one it was released in).
+        # Each FWS margin once, at the first valid report carrying it (the cycle it was
+        # computed for; with fws_lag_s, the one it was released in; a wrench outside the FWS
+        # has its own, then the reports return to the latest FWS's: not drawn again).
         k = np.flatnonzero(valid)
         first_carrier = np.zeros(len(reports), dtype=bool)
-        first_carrier[k] = np.r_[True, fws_stamp[k][1:] != fws_stamp[k][:-1]][:k.size]
+        first_carrier[k[np.unique(fws_stamp[k], return_index=True)[1]]] = True
         fws = np.where(first_carrier, values('fws_margin'), np.nan)
         fwp_in = np.array([bool(r.fwp_feasible) for r in reports], dtype=bool)
         feasible = np.array([bool(r.feasible) for r in reports], dtype=bool) & valid

@@ -74,3 +74,16 @@ def test_each_fws_margin_counts_once_also_when_released_lagged():
     s = summarize_reports(reports)
     st = s.margins['fws_margin']
     assert st['n'] == 3 and st['min'] == 100.0 and st['max'] == 102.0
+
+
+def test_an_outside_reports_own_margin_counts_once_and_the_latest_fws_is_not_recounted():
+    # FWS of stamp 0 carried by 0-9; 4-5 outside the FWS carry their own margins (their
+    # stamps); 6-9 return to the FWS of stamp 0: counted once, with 4 and 5: 3 margins.
+    reports = []
+    for i in range(10):
+        own = i in (4, 5)
+        r = report(i, 0.1, 0.1, 0.1, fresh=own or i == 0, fws_at=0)
+        r.fws_margin = -float(i) if own else 50.0
+        reports.append(r)
+    st = summarize_reports(reports).margins['fws_margin']
+    assert st['n'] == 3 and st['min'] == -5.0 and st['max'] == 50.0

@@ -147,3 +147,23 @@ def test_cli_rejects_an_unknown_parameter_with_its_name(trot):
                           text=True, timeout=180)
     assert proc.returncode == 2
     assert 'fws_rate_hzz' in proc.stderr and 'Traceback' not in proc.stderr
+
+
+def test_with_the_imu_it_times_the_fws_distance_of_the_lurch():
+    """
+    ``-p use_imu=true`` feeds the bag's IMU: the default bag's lurch leaves the FWS.
+
+    The joint states whose per-cycle FWS distance was timed are those ``pipeline_cycles`` (the
+    replay's feeding) finds outside the FWS with three or more legs.
+    """
+    from awp_ros.bags.replay import pipeline_cycles
+    from awp_ros.gait.bag import default_bag_path
+    from awp_ros.ros.pipeline import Pipeline
+    out = time_pipeline(str(default_bag_path()), 'hyq', repeat=1, overrides={'use_imu': True})
+    params, base_dir = load_parameters('hyq', {'use_imu': True})
+    outside = sum(c.result.fws_margin_per_cycle is not None for c in pipeline_cycles(
+        Pipeline.from_parameters(params, base_dir=base_dir), default_bag_path()))
+    assert out['fws_distance_outside'] == outside >= 90
+    assert 0.0 < out['fws_distance_outside_p50_ms'] < out['mean_ms_by_stance_legs'][3]
+    assert out['fws_distance_ms'] == pytest.approx(
+        out['fws_distance_outside_p50_ms'] * outside / out['joint_states'], rel=1.0)
