@@ -193,7 +193,8 @@ def plot_margins(series: MarginSeries, path, *, title: str = '') -> Path:
     ax.plot(s.t, s.fwp, color='#d95f02', lw=1.4,
             label='FWP margin' + (' (measured wrench)' if quasi else ''))
     if np.isfinite(s.fws).any():
-        ax.plot(s.t, s.fws, '.', color='#1b9e77', ms=3, label='FWS margin (when computed)')
+        ax.plot(s.t, s.fws, '.', color='#1b9e77', ms=3,
+                label='FWS margin (when computed; outside it, every cycle)')
     if quasi:
         ax.plot(s.t, s.qs_fwp, '--', color='#444444', lw=0.9,
                 label='FWP margin, quasi-static wrench')
