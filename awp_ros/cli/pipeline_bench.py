@@ -18,8 +18,10 @@ per-cycle distance when the wrench is outside it (``fws_distance``, three or mor
 count of those joint states and its median over them, ``fws_distance_outside`` and
 ``fws_distance_outside_p50_ms``), and of the FWS amortised over all joint states, the rest
 (report and input conversion), and the means by number of stance legs, with the median time of
-the FWS computed for a joint state of that many stance legs (``fws_ms_by_stance_legs``). Its
-last line is one JSON object. Output messages other than
+the FWS computed for a joint state of that many stance legs (``fws_ms_by_stance_legs``), and
+how the FWS's (2, 1, 1, 1) facet searches went (:mod:`awp_ros.geometry.certified_search`:
+``fws_search_certified``, ``fws_search_kernel``, ``fws_search_references``,
+``fws_search_tested_share``). Its last line is one JSON object. Output messages other than
 the report are not built (as in a node without subscribers to them).
 """
 
@@ -52,6 +54,7 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
 
     from awp_ros.bags.reader import read_bag
     from awp_ros.evaluation.evaluator import STAGES
+    from awp_ros.geometry import certified_search
     from awp_ros.robot.config import load_parameters
     from awp_ros.ros.pipeline import Pipeline
     from awp_ros.wrench.contact_wrench_cone import reuse_counts
@@ -66,7 +69,7 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
     for _ in range(max(1, repeat)):
         wall, legs, fws = [], [], []
         stages = {s: [] for s in STAGES + ('fws_directional_lp', 'fws_distance')}
-        reuse0 = reuse_counts()
+        reuse0, certified0 = reuse_counts(), certified_search.statistics()
         for topic, msg in msgs:
             if topic == '/contacts':
                 pipeline.on_contacts(msg)
@@ -86,11 +89,16 @@ def time_pipeline(bag: str, robot: str = 'hyq', repeat: int = 2,
                        if r is not None and cycle.fws_computed else 0.0)
     wall_a, legs_a = np.array(wall), np.array(legs)
     reused, searched = (a - b for a, b in zip(reuse_counts(), reuse0))
+    certified = {k: v - certified0[k] for k, v in certified_search.statistics().items()}
     out = {'joint_states': len(wall), 'mean_ms': float(wall_a.mean()),
            'cwc_reused': reused, 'cwc_searched': searched,
            'p50_ms': float(np.median(wall_a)),
            'fws_computed': int(np.count_nonzero(fws)),
-           'fws_amortised_ms': float(np.mean(fws))}
+           'fws_amortised_ms': float(np.mean(fws)),
+           'fws_search_certified': certified['certified'],
+           'fws_search_kernel': certified['kernel'],
+           'fws_search_references': certified['references'],
+           'fws_search_tested_share': certified['tested'] / max(certified['choices'], 1)}
     for s, v in stages.items():
         out[f'{s}_ms'] = float(np.mean(v))
     out['rest_ms'] = out['mean_ms'] - out['fws_amortised_ms'] - sum(
@@ -129,7 +137,11 @@ def main(argv: list[str] | None = None) -> int:
     lines = [f'{out["joint_states"]} joint states: {out["mean_ms"]:.3f} ms mean, '
              f'{out["p50_ms"]:.3f} ms median per joint state; FWS computed '
              f'{out["fws_computed"]} times; contact wrench cone: facets reused '
-             f'{out["cwc_reused"]} times, searched {out["cwc_searched"]}']
+             f'{out["cwc_reused"]} times, searched {out["cwc_searched"]}; FWS (2, 1, 1, 1) '
+             f'searches: {out["fws_search_certified"]} certified ('
+             f'{out["fws_search_tested_share"]:.3f} of their choices tested), '
+             f'{out["fws_search_kernel"]} by the kernel, {out["fws_search_references"]} '
+             f'references built']
     lines += [f'  {k[:-3]:<20} {v:.4f} ms (mean per joint state)' for k, v in out.items()
               if k.endswith('_ms')
               and k not in ('mean_ms', 'p50_ms', 'fws_distance_outside_p50_ms')]

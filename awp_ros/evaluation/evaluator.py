@@ -69,7 +69,7 @@ import numpy as np
 from awp_ros.errors import AwpError, ConfigError, GeometryError, InputError
 from awp_ros.evaluation.result import directional_by_axis, FeasibilityResult, LegResult, \
     WrenchSetResult
-from awp_ros.geometry import kernels
+from awp_ros.geometry import certified_search, kernels
 from awp_ros.geometry.linalg import GRAM_CERTIFY, identity
 from awp_ros.geometry.margin import directional_margins, polytope_margin, SetMargin
 from awp_ros.geometry.minkowski_facets import STEP_CHOICES
@@ -129,6 +129,7 @@ class FeasibilityEvaluator:
                  near_singular_rtol: float = 1e-2, feasibility_tol: float = 1e-6,
                  hull_tol: float | None = None) -> None:
         kernels.compile_all()       # once per process, before any control cycle
+        certified_search.compile_all()
         self.config = config if isinstance(config, RobotConfig) else load_config(config)
         self.model = RobotModel(self.config)
         self.singular_rtol = singular_rtol
@@ -294,12 +295,14 @@ class FeasibilityEvaluator:
 
         What :meth:`add_fws` computes, as data: the node hands it to a worker process
         (``fws_lag_s``) and attaches the answer with :meth:`attach_fws`; the numbers are the
-        same as :meth:`add_fws`'s (same function, same arguments).
+        same as :meth:`add_fws`'s (same function, same arguments). The FWS's directional
+        margins are left out when the evaluation has them already (three or more legs, by
+        exact LPs: ``fws_directional_per_cycle``).
         """
         legs = list(result.legs.values())
         positions = np.array([leg.position for leg in legs]) if legs else np.zeros((0, 3))
         return (positions, [leg.friction_polytope for leg in legs], result.wrench,
-                self.feasibility_tol, self.hull_tol)
+                self.feasibility_tol, self.hull_tol, result.fws_directional_per_cycle is None)
 
     def attach_fws(self, result: FeasibilityResult, part: tuple) -> FeasibilityResult:
         """
@@ -313,7 +316,8 @@ class FeasibilityEvaluator:
         S, margin, plus, minus, times = part
         t0 = time.perf_counter()
         fws_r = WrenchSetResult.from_margin('fws', S, margin)
-        fws_r.directional = directional_by_axis(plus, minus)
+        fws_r.directional = result.fws_directional_per_cycle if plus is None else \
+            directional_by_axis(plus, minus)
         # The same set as the FWS's slice: the per-cycle projection when there is one.
         fws_r.region = result.feasible_region_per_cycle
         if fws_r.region is None:
@@ -639,7 +643,7 @@ class FeasibilityEvaluator:
 
 
 def compute_fws(positions: np.ndarray, frictions: Sequence[Polytope], wrench: np.ndarray,
-                feasibility_tol: float, hull_tol: float) -> tuple:
+                feasibility_tol: float, hull_tol: float, directional: bool = True) -> tuple:
     r"""
     Return the FWS of stance legs and a wrench's margins to it (the core of ``add_fws``).
 
@@ -650,14 +654,18 @@ def compute_fws(positions: np.ndarray, frictions: Sequence[Polytope], wrench: np
     arguments: the node may run it in another process, or in steps
     (:func:`compute_fws_steps`).
 
+    ``directional``: False leaves the directional margins out (``plus``, ``minus`` None): the
+    caller has them from the exact LPs of the evaluation.
+
     :return: ``(S, margin, plus, minus, (fws_ms, directional_ms, margin_ms))``.
     """
     return run_steps(compute_fws_steps(positions, frictions, wrench, feasibility_tol,
-                                       hull_tol, step_choices=None))
+                                       hull_tol, directional, step_choices=None))
 
 
 def compute_fws_steps(positions: np.ndarray, frictions: Sequence[Polytope],
-                      wrench: np.ndarray, feasibility_tol: float, hull_tol: float, *,
+                      wrench: np.ndarray, feasibility_tol: float, hull_tol: float,
+                      directional: bool = True, *,
                       step_choices: int | None = STEP_CHOICES) -> Generator[None, None, tuple]:
     """
     Compute :func:`compute_fws` in steps of about 0.1-0.4 ms (:mod:`awp_ros.geometry.steps`).
@@ -674,7 +682,8 @@ def compute_fws_steps(positions: np.ndarray, frictions: Sequence[Polytope],
     yield
     clock = time.perf_counter
     t1 = clock()
-    plus, minus = directional_margins(S, wrench, feasibility_tol=feasibility_tol)
+    plus, minus = directional_margins(S, wrench, feasibility_tol=feasibility_tol) \
+        if directional else (None, None)
     t2 = clock()
     margin = polytope_margin(S, wrench, feasibility_tol=feasibility_tol, hull_tol=hull_tol)
     t3 = clock()

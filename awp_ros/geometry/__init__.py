@@ -7,6 +7,7 @@ Polytope geometry, ROS-free: H/V-representations, exact Minkowski-sum facets, ma
 - :mod:`face_lattice`: faces of a 3D polytope, grouped by dimension.
 - :mod:`zonotope`: H-rep of a zonotope (a sum of segments), e.g. the AWP of 3-joint legs.
 - :mod:`minkowski_facets`: facet normals of a sum of lifted polytopes from face combinations.
+- :mod:`certified_search`: their most frequent search along a stream, skipping certified choices.
 - :mod:`margin`: signed Euclidean margin of a point to a polytope, and directional margins.
 - :mod:`lp`: the Chebyshev-ball LP (the one LP helper).
 - :mod:`mesh`: triangle meshes and force slices of polytopes, for drawing.
@@ -16,4 +17,4 @@ Polytope geometry, ROS-free: H/V-representations, exact Minkowski-sum facets, ma
 """
 
 __all__ = ['polytope', 'linalg', 'exterior', 'face_lattice', 'zonotope', 'minkowski_facets',
-           'margin', 'lp', 'mesh', 'iterative_projection', 'kernels', 'steps']
+           'certified_search', 'margin', 'lp', 'mesh', 'iterative_projection', 'kernels', 'steps']

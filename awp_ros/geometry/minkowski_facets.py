@@ -44,6 +44,12 @@ in the coordinates ``y = U^T (x - o)`` of the affine hull of ``S``, dimension ``
     normal the generalised cross product of its four lifted directions in R^5, checked in
     float64 with the slack ``cone_tol |M_k m| |a|`` (numpy's grid machinery, built for 10^5
     choices, cost more in set-up than in search here).
+(7) Along a stream of close joint states (the node's, at its rate) the pattern (2, 1, 1, 1) is
+    searched by certificates (:mod:`awp_ros.geometry.certified_search`): a choice's check
+    values are determinants of its walls and checks, which move by a bounded amount when
+    those vectors do, so the choices a reference joint state decided by a wider margin are
+    not tested again; the rows are the same
+    (``test_every_fws_of_the_default_bag_equals_a_full_recomputation``).
 
 The caller then sets each row's offset to the support function of ``S`` (an exact
 supporting halfspace whatever ``a`` is). Every tolerance in (3) only admits extra (redundant
@@ -93,7 +99,7 @@ from math import comb, prod
 
 import numpy as np
 
-from awp_ros.geometry import kernels
+from awp_ros.geometry import certified_search, kernels
 from awp_ros.geometry.exterior import hodge_normal, wedge_all, wedge_rows, wedge_table
 from awp_ros.geometry.face_lattice import Faces
 from awp_ros.geometry.linalg import workspace
@@ -185,6 +191,14 @@ def facet_normal_steps(faces: list[Faces], M: np.ndarray, r: int, cone_tol: floa
     for dims, legs in patterns:
         yield
         if sliced and tuple(dims) in kernels.SLICE_PATTERNS:
+            context = None
+            if tuple(dims) == certified_search.PATTERN:     # (7): by certificates
+                found, context = certified_search.try_rows(
+                    feet, basis, padded, legs, cone_tol, normal_tol, build=step_choices is None)
+                if found is not None:
+                    normals.append(np.vstack(found[:2]))
+                    count += found[2]
+                    continue
             plus, minus = [], []
             for j, run in enumerate(_runs(legs, dims, padded, step_choices)):
                 if j:
@@ -195,6 +209,8 @@ def facet_normal_steps(faces: list[Faces], M: np.ndarray, r: int, cone_tol: floa
                 minus.append(m)
                 count += n
             normals.append(np.vstack(plus + minus))       # the order of one piece
+            if context is not None:
+                certified_search.after_kernel(context, build=step_choices is None)
             continue
         sets = [_select(stacked[d], column) for d, column in zip(dims, zip(*legs))]
         a, n = _pattern_normals(sets, dims, r, scale, cone_tol, normal_tol)

@@ -83,6 +83,14 @@ def test_counts_match_the_bag_and_timings_nest_within_the_wall_time(trot):
     expected = due_fws(stamps, stances, rate)
     assert len(set(stances)) - 1 < len(expected) < n
     assert out['fws_computed'] == len(expected)
+    # Every four-leg FWS searched its pattern (2, 1, 1, 1) once, by certificates or the kernel.
+    stance_at = dict(zip(stamps, stances))
+    four = sum(1 for ns in expected if sum(stance_at[ns]) == 4)
+    from awp_ros.geometry import kernels
+    assert out['fws_search_certified'] + out['fws_search_kernel'] == \
+        (four if kernels.ENABLED else 0)
+    assert four > 0
+    assert 0.0 <= out['fws_search_tested_share'] <= 1.0
     # Stance sizes are those of the gait, and the means by stance size are means of a
     # partition of the joint states with the gait's counts.
     assert set(out['mean_ms_by_stance_legs']) == set(legs) == {2, 4}

@@ -550,7 +550,7 @@ def test_fws_with_kernels_on_the_default_bag_equals_numpy_and_the_lp(repo, tmp_p
     legs = {len(job[1]) for job in jobs}
     assert len(jobs) > 250 and legs == {2, 3, 4}
     solid = 0
-    for positions, frictions, w, ftol, htol in jobs:
+    for positions, frictions, w, ftol, htol, _ in jobs:
         S, margin, plus, minus, _ = compute_fws(positions, frictions, w, ftol, htol)
         kernels.ENABLED = False
         try:
