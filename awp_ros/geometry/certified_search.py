@@ -42,7 +42,10 @@ when the stream is *coherent*, its walls having moved by a median relative
 :data:`COHERENT_STEP` or less since the previous search, as consecutive joint states at the
 node's rate do; it is renewed after a search that tested more than :data:`LIMIT` of the
 choices. Unrelated postures (``awp_bench``'s random ones, an FWS at 10 Hz) never build one
-and pay only for the vectors' comparison (~0.05 ms).
+and pay only for the vectors' comparison (~0.05 ms); a stream too rough for the references to
+pay (renewed after fewer than :data:`MIN_SERVED` searches), or not a stream (two pairs of
+searches in a row not close), gets none for a cool-down that doubles while it stays so, and
+then pays nothing.
 
 Only the pattern (2, 1, 1, 1), three quarters of the four-leg choices, is searched so: the
 same certificates on (2, 2, 1) (leg B's facet class as the node) cost more than that
@@ -81,6 +84,15 @@ LIMIT = 0.1
 #: at most :data:`COHERENT_REFERENCE` since it.
 COHERENT_STEP = 1e-3
 COHERENT_REFERENCE = 2e-2
+#: A reference renewed after fewer certified searches than this did not pay for itself (it costs
+#: about 1.5 kernel searches, each certified search saves about half of one): no reference is
+#: then built for the next :data:`COOLDOWN` searches, doubled at each such failure in a row (up
+#: to :data:`COOLDOWN_MAX`), during which the search is the kernel's at no extra cost. The same
+#: after two pairs of consecutive searches in a row that were not close (one is a gap: the
+#: first search after another stance).
+MIN_SERVED = 3
+COOLDOWN = 16
+COOLDOWN_MAX = 1024
 
 _jit = K._jit
 _INF = np.inf
@@ -404,6 +416,9 @@ class _Streams(threading.local):
     def __init__(self) -> None:
         self.references: dict = {}
         self.previous: dict = {}
+        self.served: dict = {}            # certified searches by the current reference
+        self.cooldown: dict = {}          # searches left without references, and its length
+        self.apart: dict = {}             # the last pair of searches was not close
         self.counts = {'certified': 0, 'kernel': 0, 'references': 0, 'tested': 0, 'choices': 0}
 
 
@@ -443,15 +458,17 @@ def try_rows(positions: np.ndarray, U: np.ndarray, groups: dict, legs, cone_tol:
     """
     legs = np.ascontiguousarray(legs, dtype=np.int64)
     positions = np.ascontiguousarray(positions, dtype=float)
+    key = (positions.shape[0], legs.tobytes())
+    streams = _STREAMS
+    if streams.cooldown.get(key, (0, 0))[0] > 0:      # references did not pay: the kernel
+        return None, (key, None)
     cone_tol = float(cone_tol)
     A, B = groups[2], groups[1]
     An = np.ascontiguousarray(cross3(A[0][:, :, 0], A[0][:, :, 1]))
     vectors = slice_vectors(positions, An, A[1], A[2], A[3], B[0], B[1], B[2], B[3], legs,
                             cone_tol)
-    key = (positions.shape[0], legs.tobytes())
     signature = _signature(groups, legs, cone_tol)
     context = (key, signature, vectors, (A[3], B[3]), legs, cone_tol)
-    streams = _STREAMS
     ref = streams.references.get(key)
     if ref is None or ref.signature != signature \
             or wall_change(vectors[2], ref.W, legs, A[3], B[3]) > COHERENT_REFERENCE:
@@ -473,8 +490,12 @@ def try_rows(positions: np.ndarray, U: np.ndarray, groups: dict, legs, cone_tol:
     counts['choices'] += ref.choices
     found = (out_pos[:npos].copy(), out_neg[:nneg].copy(), ref.choices)
     streams.previous[key] = (signature, vectors[2])
+    streams.served[key] = served = streams.served.get(key, 0) + 1
     if tested > LIMIT * ref.choices:
-        if build:
+        if served < MIN_SERVED:                       # too rough a stream: back off
+            _back_off(streams, key)
+        elif build:
+            streams.cooldown.pop(key, None)
             _build(streams, context)
         else:
             streams.references.pop(key, None)
@@ -488,15 +509,34 @@ def after_kernel(context: tuple, *, build: bool = True) -> None:
     ``build``: whether a reference may be built now (~2 ms for HyQ's four legs; the stepped
     search, whose steps are ~0.2 ms, passes False).
     """
-    key, signature, vectors, counts, legs, _ = context
     streams = _STREAMS
     streams.counts['kernel'] += 1
+    if context[1] is None:                            # in a cool-down
+        left, length = streams.cooldown[context[0]]
+        streams.cooldown[context[0]] = (left - 1, length)
+        return
+    key, signature, vectors, counts, legs, _ = context
     previous = streams.previous.get(key)
     streams.previous[key] = (signature, vectors[2])
     streams.references.pop(key, None)
-    if build and previous is not None and previous[0] == signature \
-            and wall_change(vectors[2], previous[1], legs, *counts) <= COHERENT_STEP:
+    if not build or previous is None or previous[0] != signature:
+        return
+    if wall_change(vectors[2], previous[1], legs, *counts) <= COHERENT_STEP:
+        streams.apart.pop(key, None)
         _build(streams, context)
+    elif streams.apart.setdefault(key, 0) >= 1:      # two pairs apart in a row: not a stream
+        streams.apart.pop(key, None)
+        _back_off(streams, key)
+    else:                                             # one pair apart: a gap, e.g. a stance
+        streams.apart[key] = 1
+
+
+def _back_off(streams: _Streams, key: tuple) -> None:
+    """Build no reference for the next searches of ``key``: twice as many as last time."""
+    streams.references.pop(key, None)
+    streams.previous.pop(key, None)
+    length = min(max(2 * streams.cooldown.get(key, (0, 0))[1], COOLDOWN), COOLDOWN_MAX)
+    streams.cooldown[key] = (length, length)
 
 
 def _build(streams: _Streams, context: tuple) -> None:
@@ -506,7 +546,10 @@ def _build(streams: _Streams, context: tuple) -> None:
         streams.references.clear()
     if len(streams.previous) >= 8 and key not in streams.previous:
         streams.previous.clear()
+        streams.cooldown.clear()
+        streams.apart.clear()
     streams.references[key] = Reference(signature, vectors, counts, legs, cone_tol)
+    streams.served[key] = 0
     streams.counts['references'] += 1
 
 

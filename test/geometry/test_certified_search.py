@@ -4,6 +4,7 @@ from pathlib import Path
 
 from awp_ros_msgs.msg import ContactState
 import numpy as np
+import pytest
 from rclpy.serialization import deserialize_message
 from scipy.spatial import cKDTree
 from sensor_msgs.msg import JointState
@@ -173,3 +174,25 @@ def test_unrelated_postures_build_no_reference_and_get_the_kernels_rows():
     assert after['kernel'] - before['kernel'] == 6
     assert after['references'] == before['references']
     assert after['certified'] == before['certified']
+
+
+@pytest.mark.parametrize('coherent_step', [CS.COHERENT_STEP, 1.0])
+def test_a_stream_too_rough_for_references_backs_off_to_the_kernel(monkeypatch, coherent_step):
+    """
+    A random walk renewing its references too often gets none after the first failure.
+
+    ``awp_bench``'s walk moves every joint at 2 rad/s in a random direction: the searches are
+    the kernel's (a reference would cost more than it saves). Its consecutive searches are not
+    close; with every pair taken as close (``COHERENT_STEP`` 1) the references are built and
+    renewed after one search each, and the back-off is the same.
+    """
+    from awp_ros.cli.bench import stream_times
+    from awp_ros.evaluation.evaluator import FeasibilityEvaluator
+    monkeypatch.setattr(CS, 'COHERENT_STEP', coherent_step)
+    evaluator = FeasibilityEvaluator('hyq')
+    before = CS.statistics()
+    stream_times(evaluator, 120)
+    after = CS.statistics()
+    assert after['kernel'] - before['kernel'] + after['certified'] - before['certified'] == 120
+    assert after['references'] - before['references'] <= 2
+    assert after['kernel'] - before['kernel'] >= 115
