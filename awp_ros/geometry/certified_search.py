@@ -63,7 +63,7 @@ from awp_ros.geometry import kernels as K
 from awp_ros.geometry.linalg import cross3, workspace
 
 __all__ = ['after_kernel', 'certified_search', 'choice_scores', 'COHERENT_STEP', 'compile_all',
-           'LIMIT', 'PATTERN', 'slice_vectors', 'statistics', 'try_rows']
+           'LIMIT', 'PATTERN', 'reset', 'slice_vectors', 'statistics', 'try_rows']
 
 #: The pattern searched with certificates.
 PATTERN = (2, 1, 1, 1)
@@ -432,6 +432,13 @@ def statistics() -> dict:
     ``tested``/``choices``: the choices tested in full and those of the certified searches.
     """
     return dict(_STREAMS.counts)
+
+
+def reset() -> None:
+    """Forget this thread's references, previous searches and cool-downs (not its counts)."""
+    counts = _STREAMS.counts
+    _STREAMS.__init__()
+    _STREAMS.counts = counts
 
 
 def _signature(groups: dict, legs: np.ndarray, cone_tol: float) -> bytes:

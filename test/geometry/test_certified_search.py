@@ -74,8 +74,9 @@ def test_every_fws_of_the_default_bag_equals_a_full_recomputation():
     FWS is recomputed by the kernel's search alone. The H-reps must have the same rows (each
     row of one within 1e-9 of a row of the other, offsets in kN; else the same set by LPs)
     and margins, the directional margins (the evaluation's LPs) the recomputed H-rep's; most
-    four-leg searches must have been certified.
+    four-leg searches must have been certified (this thread's earlier streams forgotten).
     """
+    CS.reset()
     before = CS.statistics()
     states = 0
     for pipeline, r in _stream({'fws_rate_hz': 0.0}):
@@ -163,6 +164,7 @@ def test_unrelated_postures_build_no_reference_and_get_the_kernels_rows():
     from awp_ros.evaluation.evaluator import FeasibilityEvaluator
     evaluator = FeasibilityEvaluator('hyq')
     rng = np.random.default_rng(7)
+    CS.reset()
     before = CS.statistics()
     base = evaluator.standing_state()
     names = list(base.joint_positions)
@@ -179,20 +181,22 @@ def test_unrelated_postures_build_no_reference_and_get_the_kernels_rows():
 @pytest.mark.parametrize('coherent_step', [CS.COHERENT_STEP, 1.0])
 def test_a_stream_too_rough_for_references_backs_off_to_the_kernel(monkeypatch, coherent_step):
     """
-    A random walk renewing its references too often gets none after the first failure.
+    A random walk renewing its references too often gets few: cool-downs of 16, 32, 64 searches.
 
     ``awp_bench``'s walk moves every joint at 2 rad/s in a random direction: the searches are
     the kernel's (a reference would cost more than it saves). Its consecutive searches are not
     close; with every pair taken as close (``COHERENT_STEP`` 1) the references are built and
-    renewed after one search each, and the back-off is the same.
+    renewed after one search each, and the back-off is the same. Without the back-off, 120
+    searches would build tens of references.
     """
     from awp_ros.cli.bench import stream_times
     from awp_ros.evaluation.evaluator import FeasibilityEvaluator
     monkeypatch.setattr(CS, 'COHERENT_STEP', coherent_step)
     evaluator = FeasibilityEvaluator('hyq')
+    CS.reset()
     before = CS.statistics()
     stream_times(evaluator, 120)
     after = CS.statistics()
     assert after['kernel'] - before['kernel'] + after['certified'] - before['certified'] == 120
-    assert after['references'] - before['references'] <= 2
-    assert after['kernel'] - before['kernel'] >= 115
+    assert after['references'] - before['references'] <= 4
+    assert after['kernel'] - before['kernel'] >= 110
