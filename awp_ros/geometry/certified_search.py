@@ -464,7 +464,9 @@ def try_rows(positions: np.ndarray, U: np.ndarray, groups: dict, legs, cone_tol:
     else at the next kernel search).
     """
     legs = np.ascontiguousarray(legs, dtype=np.int64)
-    positions = np.ascontiguousarray(positions, dtype=float)
+    # Writeable copies if need be: a read-only array is another type to numba, compiled (or
+    # loaded from its cache, ~10 ms) at its first call, inside a control cycle.
+    positions = np.require(positions, dtype=float, requirements=['C', 'W'])
     key = (positions.shape[0], legs.tobytes())
     streams = _STREAMS
     if streams.cooldown.get(key, (0, 0))[0] > 0:      # references did not pay: the kernel
@@ -480,7 +482,7 @@ def try_rows(positions: np.ndarray, U: np.ndarray, groups: dict, legs, cone_tol:
     if ref is None or ref.signature != signature \
             or wall_change(vectors[2], ref.W, legs, A[3], B[3]) > COHERENT_REFERENCE:
         return None, context
-    U = np.ascontiguousarray(U, dtype=float)
+    U = np.require(U, dtype=float, requirements=['C', 'W'])
     cap = 4096
     while True:
         out_pos = workspace('certified_pos', (cap, 6))

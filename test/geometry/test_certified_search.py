@@ -200,3 +200,21 @@ def test_a_stream_too_rough_for_references_backs_off_to_the_kernel(monkeypatch, 
     assert after['kernel'] - before['kernel'] + after['certified'] - before['certified'] == 120
     assert after['references'] - before['references'] <= 4
     assert after['kernel'] - before['kernel'] >= 110
+
+
+def test_the_node_s_first_certified_search_needs_no_compilation():
+    """
+    ``compile_all`` compiles every signature a stream calls: none is added along the bag.
+
+    A read-only hull basis (as the FWS passes it) was another numba type, compiled or loaded
+    at the first certified search, inside a control cycle (~10 ms, or seconds uncached).
+    """
+    CS.compile_all()
+    kernels = (CS.slice_vectors, CS.choice_scores, CS.wall_change, CS.certified_search)
+    CS.reset()
+    before = [len(k.signatures) for k in kernels]
+    for n, (_, r) in enumerate(_stream({'fws_rate_hz': 0.0})):
+        if n == 700:
+            break
+    assert CS.statistics()['certified'] > 0
+    assert [len(k.signatures) for k in kernels] == before
